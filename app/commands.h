@@ -1,0 +1,13 @@
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+
+namespace substep::app {
+
+// Each adds its subcommand; when the user picks it, its callback stores the work in `action`.
+void addRunCommand(CLI::App& app, std::function<int()>& action);
+void addScenesCommand(CLI::App& app, std::function<int()>& action);
+
+}  // namespace substep::app

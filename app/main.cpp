@@ -1,0 +1,30 @@
+// substep: a lab for the sub-stepping constraint solver of "The Sub-stepping of Havok's Physics
+// Solver" (Nohra). Thin: every subcommand calls the physics and render libraries.
+#include "app/commands.h"
+#include "app/common.h"
+
+#include <iostream>
+
+int main(int argc, char** argv) {
+  using namespace substep::app;
+  CLI::App app{"substep: step, measure and render the report's Algorithms 1 to 5 on rigid-body scenes"};
+  app.require_subcommand(1);
+  std::function<int()> action;
+  addRunCommand(app, action);
+  addScenesCommand(app, action);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : kExitBadInput;
+  }
+  try {
+    return action ? action() : 0;
+  } catch (const UsageError& e) {
+    std::cerr << "substep: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "substep: " << e.what() << "\n";
+    return kExitFailure;
+  }
+}

@@ -1,0 +1,351 @@
+#include "physics/collision/narrowphase.h"
+
+#include "physics/collision/contact_margin.h"
+
+#include <fcl/narrowphase/collision.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace substep {
+
+namespace {
+
+fcl::Transform3d toFcl(const Pose& p) {
+  fcl::Transform3d t = fcl::Transform3d::Identity();
+  t.linear() = p.q.toRotationMatrix();
+  t.translation() = p.p;
+  return t;
+}
+
+Pose compose(const Pose& a, const Pose& b) { return Pose{a.apply(b.p), a.q * b.q}; }
+
+// Closest points of segments [p0,p1] and [q0,q1] (clamped parameters).
+void closestPointsOfSegments(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1, Vec3& cp, Vec3& cq) {
+  const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+  double s = 0, t = 0;
+  if (a <= 1e-18 && e <= 1e-18) {
+    cp = p0;
+    cq = q0;
+    return;
+  }
+  if (a <= 1e-18) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = d1.dot(r);
+    if (e <= 1e-18) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = d1.dot(d2), denom = a * e - b * b;
+      s = denom > 1e-18 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0) {
+        t = 0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1) {
+        t = 1;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  cp = p0 + s * d1;
+  cq = q0 + t * d2;
+}
+
+// Sutherland-Hodgman: keeps the part of polygon `in` with (p - o)·m <= 0.
+int clipPolygon(const Vec3* in, int n, const Vec3& o, const Vec3& m, Vec3* out, int cap) {
+  int k = 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec3& a = in[i];
+    const Vec3& b = in[(i + 1) % n];
+    const double da = (a - o).dot(m), db = (b - o).dot(m);
+    if (da <= 0 && k < cap) out[k++] = a;
+    if ((da < 0 && db > 0) || (da > 0 && db < 0)) {
+      if (k < cap) out[k++] = a + (da / (da - db)) * (b - a);
+    }
+  }
+  return k;
+}
+
+// Clips segment [a,b] to (p - o)·m <= 0; false if nothing is left.
+bool clipSegment(Vec3& a, Vec3& b, const Vec3& o, const Vec3& m) {
+  const double da = (a - o).dot(m), db = (b - o).dot(m);
+  if (da > 0 && db > 0) return false;
+  if (da > 0) a = a + (da / (da - db)) * (b - a);
+  else if (db > 0) b = b + (db / (db - da)) * (a - b);
+  return true;
+}
+
+Vec3 polygonNormal(const Feature& f) {  // Newell's method
+  Vec3 n = Vec3::Zero();
+  for (int i = 0; i < f.count; ++i) {
+    const Vec3& a = f.p[i];
+    const Vec3& b = f.p[(i + 1) % f.count];
+    n += Vec3((a.y() - b.y()) * (a.z() + b.z()), (a.z() - b.z()) * (a.x() + b.x()), (a.x() - b.x()) * (a.y() + b.y()));
+  }
+  return n;
+}
+
+void addClipped(const Vec3& p, const Vec3& r0, const Vec3& nR, const Vec3& dirI, bool refIsB, const Vec3& n,
+                ContactPatch& out) {
+  const double den = dirI.dot(nR);
+  if (den < 0.1) return;  // reference face nearly along the normal: no meaningful projection
+  const double s = (p - r0).dot(nR) / den;  // separation along the normal
+  if (s > kContactMargin) return;
+  const Vec3 q = p - s * dirI;
+  ContactPoint c;
+  c.n = n;
+  c.depth = -s;
+  c.pA = refIsB ? p : q;
+  c.pB = refIsB ? q : p;
+  out.add(c);
+}
+
+double quadArea(const double (*p)[2], int a, int b, int c, int d) {
+  auto shoelace = [&](int i, int j, int k, int l) {
+    const int v[4] = {i, j, k, l};
+    double s = 0;
+    for (int m = 0; m < 4; ++m) {
+      const double* u = p[v[m]];
+      const double* w = p[v[(m + 1) % 4]];
+      s += u[0] * w[1] - u[1] * w[0];
+    }
+    return std::abs(s);
+  };
+  return std::max({shoelace(a, b, c, d), shoelace(a, b, d, c), shoelace(a, c, b, d)});
+}
+
+bool insideTriangle(const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c, double eps) {
+  const Vec3 n = (b - a).cross(c - a);
+  const double nn = n.squaredNorm();
+  if (nn <= 0) return false;
+  const double u = (c - b).cross(q - b).dot(n) / nn;
+  const double v = (a - c).cross(q - c).dot(n) / nn;
+  const double w = 1 - u - v;
+  return u >= -eps && v >= -eps && w >= -eps;
+}
+
+}  // namespace
+
+void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec3& n, ContactPatch& out) {
+  const Vec3 dirI = refIsB ? n : Vec3(-n);  // from the reference towards the incident body
+  if (ref.count >= 3) {
+    Vec3 nR = polygonNormal(ref);
+    if (nR.squaredNorm() < 1e-24) return;
+    nR.normalize();
+    if (nR.dot(dirI) < 0) nR = -nR;
+    Vec3 centroid = Vec3::Zero();
+    for (int i = 0; i < ref.count; ++i) centroid += ref.p[i];
+    centroid /= ref.count;
+    if (inc.count >= 3) {
+      Vec3 bufA[2 * kMaxFeaturePoints + 8], bufB[2 * kMaxFeaturePoints + 8];
+      const int cap = 2 * kMaxFeaturePoints + 8;
+      int k = inc.count;
+      std::copy(inc.p, inc.p + k, bufA);
+      Vec3* cur = bufA;
+      Vec3* nxt = bufB;
+      for (int i = 0; i < ref.count && k > 0; ++i) {
+        const Vec3& a = ref.p[i];
+        const Vec3& b = ref.p[(i + 1) % ref.count];
+        Vec3 m = (b - a).cross(nR);
+        if ((centroid - a).dot(m) > 0) m = -m;
+        k = clipPolygon(cur, k, a, m, nxt, cap);
+        std::swap(cur, nxt);
+      }
+      for (int i = 0; i < k; ++i) addClipped(cur[i], ref.p[0], nR, dirI, refIsB, n, out);
+    } else if (inc.count == 2) {
+      Vec3 a = inc.p[0], b = inc.p[1];
+      for (int i = 0; i < ref.count; ++i) {
+        const Vec3& r0 = ref.p[i];
+        const Vec3& r1 = ref.p[(i + 1) % ref.count];
+        Vec3 m = (r1 - r0).cross(nR);
+        if ((centroid - r0).dot(m) > 0) m = -m;
+        if (!clipSegment(a, b, r0, m)) return;
+      }
+      addClipped(a, ref.p[0], nR, dirI, refIsB, n, out);
+      if ((b - a).squaredNorm() > 1e-12) addClipped(b, ref.p[0], nR, dirI, refIsB, n, out);
+    }
+    return;
+  }
+  if (ref.count == 2 && inc.count == 2) {
+    const Vec3 dR = (ref.p[1] - ref.p[0]).normalized();
+    const Vec3 dI = (inc.p[1] - inc.p[0]).normalized();
+    if (dR.cross(dI).norm() < 0.05) {
+      // Parallel edges (a capsule lying along a box edge, two lying capsules): the overlap.
+      Vec3 a = inc.p[0], b = inc.p[1];
+      if (!clipSegment(a, b, ref.p[0], -dR) || !clipSegment(a, b, ref.p[1], dR)) return;
+      Vec3 nR = dirI - dirI.dot(dR) * dR;
+      if (nR.squaredNorm() < 1e-12) return;
+      nR.normalize();
+      addClipped(a, ref.p[0], nR, dirI, refIsB, n, out);
+      if ((b - a).squaredNorm() > 1e-12) addClipped(b, ref.p[0], nR, dirI, refIsB, n, out);
+    } else {
+      Vec3 cr, ci;
+      closestPointsOfSegments(ref.p[0], ref.p[1], inc.p[0], inc.p[1], cr, ci);
+      ContactPoint c;
+      c.n = n;
+      c.pA = refIsB ? ci : cr;
+      c.pB = refIsB ? cr : ci;
+      c.depth = (c.pB - c.pA).dot(n);
+      if (c.depth >= -kContactMargin) out.add(c);
+    }
+  }
+}
+
+void reducePatch(ContactPatch& patch, int maxPoints) {
+  if (patch.count <= maxPoints) return;
+  const int n = patch.count;
+  Vec3 t1, t2;
+  tangentBasis(patch.p[0].n, t1, t2);
+  double p2[kMaxPatchPoints][2];
+  for (int i = 0; i < n; ++i) {
+    p2[i][0] = patch.p[i].pA.dot(t1);
+    p2[i][1] = patch.p[i].pA.dot(t2);
+  }
+  int keep[4] = {0, -1, -1, -1};
+  for (int i = 1; i < n; ++i)
+    if (patch.p[i].depth > patch.p[keep[0]].depth) keep[0] = i;
+  auto d2 = [&](int i, int j) {
+    const double dx = p2[i][0] - p2[j][0], dy = p2[i][1] - p2[j][1];
+    return dx * dx + dy * dy;
+  };
+  double best = -1;
+  for (int i = 0; i < n; ++i)
+    if (d2(i, keep[0]) > best) best = d2(i, keep[0]), keep[1] = i;
+  best = -1;
+  for (int i = 0; i < n; ++i) {
+    if (i == keep[0] || i == keep[1]) continue;
+    const double area = std::abs((p2[keep[1]][0] - p2[keep[0]][0]) * (p2[i][1] - p2[keep[0]][1]) -
+                                 (p2[keep[1]][1] - p2[keep[0]][1]) * (p2[i][0] - p2[keep[0]][0]));
+    if (area > best) best = area, keep[2] = i;
+  }
+  best = -1;
+  for (int i = 0; i < n && maxPoints > 3; ++i) {
+    if (i == keep[0] || i == keep[1] || i == keep[2]) continue;
+    const double area = quadArea(p2, keep[0], keep[1], keep[2], i);
+    if (area > best) best = area, keep[3] = i;
+  }
+  ContactPoint kept[4];
+  int k = 0;
+  for (int i = 0; i < std::min(maxPoints, 4); ++i)
+    if (keep[i] >= 0) kept[k++] = patch.p[keep[i]];
+  patch.count = k;
+  std::copy(kept, kept + k, patch.p);
+}
+
+Narrowphase::Narrowphase() : request_(4, true) { request_.gjk_solver_type = fcl::GST_LIBCCD; }
+
+void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose& poseA, const Shape& sB,
+                          const CollisionShape& cB, const Pose& poseB, ContactPatch& out) {
+  out.count = 0;
+  const bool mesh = sB.type == ShapeType::TriangleMesh;
+  request_.num_max_contacts = mesh ? 64 : 4;
+  result_.clear();
+  fcl::collide(cA.geometry.get(), toFcl(compose(poseA, cA.offset)), cB.geometry.get(), toFcl(compose(poseB, cB.offset)),
+               request_, result_);
+  const size_t nc = result_.numContacts();
+  if (nc == 0) return;
+
+  if (mesh) {
+    // One FCL contact per triangle: clip A's feature against each triangle, with the triangle's
+    // own normal turned towards A (FCL's mesh normals are unreliable).
+    const Mesh& m = *sB.mesh;
+    for (size_t i = 0; i < nc; ++i) {
+      const auto& fc = result_.getContact(i);
+      // FCL's shape-mesh traversal puts the triangle index in b1 even with the mesh second.
+      const intptr_t tri = fc.b2 >= 0 ? fc.b2 : fc.b1;
+      if (tri < 0 || tri >= static_cast<intptr_t>(m.triangles.size())) continue;
+      Feature t;
+      t.count = 3;
+      for (int k = 0; k < 3; ++k) t.p[k] = poseB.apply(m.vertices[static_cast<size_t>(m.triangles[static_cast<size_t>(tri)][k])]);
+      Vec3 nt = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
+      if (nt.squaredNorm() < 1e-24) continue;
+      nt.normalize();
+      if (nt.dot(poseA.p - t.p[0]) < 0) nt = -nt;
+      const Feature fa = supportingFeature(sA, poseA, -nt);
+      ContactPatch tmp;
+      if (fa.count == 1) {
+        const double s = (fa.p[0] - t.p[0]).dot(nt);
+        const Vec3 q = fa.p[0] - s * nt;
+        if (s <= kContactMargin && insideTriangle(q, t.p[0], t.p[1], t.p[2], 1e-6))
+          tmp.add(ContactPoint{fa.p[0], q, nt, -s});
+      } else {
+        clipFeatures(t, fa, true, nt, tmp);
+      }
+      for (int k = 0; k < tmp.count; ++k) {
+        bool dup = false;
+        for (int j = 0; j < out.count; ++j)
+          if ((out.p[j].pA - tmp.p[k].pA).squaredNorm() < 1e-6) {
+            if (tmp.p[k].depth > out.p[j].depth) out.p[j] = tmp.p[k];
+            dup = true;
+            break;
+          }
+        if (!dup) out.add(tmp.p[k]);
+      }
+    }
+    if (out.count == 0) {
+      // On a ridge between triangles no feature projects inside one: use FCL's points.
+      for (size_t i = 0; i < nc && out.count < kMaxPatchPoints; ++i) {
+        const auto& fc = result_.getContact(i);
+        Vec3 n = fc.normal;
+        if (n.squaredNorm() < 1e-24) continue;
+        n.normalize();
+        if (n.dot(poseA.p - fc.pos) < 0) n = -n;
+        const double d = fc.penetration_depth;
+        out.add(ContactPoint{fc.pos - 0.5 * d * n, fc.pos + 0.5 * d * n, n, d});
+      }
+    }
+    reducePatch(out);
+    return;
+  }
+
+  // The deepest FCL contact gives the normal (FCL's points from A to B; ours from B to A).
+  size_t deepest = 0;
+  for (size_t i = 1; i < nc; ++i)
+    if (result_.getContact(i).penetration_depth > result_.getContact(deepest).penetration_depth) deepest = i;
+  const auto& fc = result_.getContact(deepest);
+  const double depth = fc.penetration_depth;
+  Vec3 n = -fc.normal;
+  if (n.squaredNorm() < 1e-24) return;
+  n.normalize();
+
+  if (sB.type == ShapeType::Plane) {
+    const Vec3 pn = poseB.rotate(sB.normal).normalized();
+    const double off = sB.offset + pn.dot(poseB.p);
+    const Feature fa = supportingFeature(sA, poseA, -pn);
+    for (int i = 0; i < fa.count; ++i) {
+      const double s = pn.dot(fa.p[i]) - off;
+      if (s <= kContactMargin) out.add(ContactPoint{fa.p[i], fa.p[i] - s * pn, pn, -s});
+    }
+    reducePatch(out);
+    return;
+  }
+
+  const Feature fA = supportingFeature(sA, poseA, -n);
+  const Feature fB = supportingFeature(sB, poseB, n);
+  if (fA.count == 1) {
+    out.add(ContactPoint{fA.p[0], fA.p[0] + depth * n, n, depth});
+    return;
+  }
+  if (fB.count == 1) {
+    out.add(ContactPoint{fB.p[0] - depth * n, fB.p[0], n, depth});
+    return;
+  }
+  // The reference is the bigger feature; between two faces, the one facing the normal best.
+  bool refIsB;
+  if (fA.count != fB.count && (fA.count < 3 || fB.count < 3)) {
+    refIsB = fB.count > fA.count;
+  } else if (fA.count >= 3) {
+    const double aB = std::abs(polygonNormal(fB).normalized().dot(n));
+    const double aA = std::abs(polygonNormal(fA).normalized().dot(n));
+    refIsB = aB >= aA;
+  } else {
+    refIsB = true;
+  }
+  clipFeatures(refIsB ? fB : fA, refIsB ? fA : fB, refIsB, n, out);
+  if (out.count == 0) out.add(ContactPoint{fc.pos - 0.5 * depth * n, fc.pos + 0.5 * depth * n, n, depth});
+  reducePatch(out);
+}
+
+}  // namespace substep

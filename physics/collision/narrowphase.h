@@ -1,0 +1,53 @@
+// s1, narrowphase: FCL finds whether two shapes touch, with the normal and the depth; the
+// contact points come from clipping the two shapes' supporting features against each other,
+// so that a box on a box, a lying capsule or a cylinder on its side get their whole support
+// from one query (FCL gives one point for every pair but box-box). See docs/collision.md.
+#pragma once
+
+#include "physics/collision/shape_geometry.h"
+#include "physics/math.h"
+#include "physics/model.h"
+
+#include <fcl/narrowphase/collision_request.h>
+#include <fcl/narrowphase/collision_result.h>
+
+namespace substep {
+
+struct ContactPoint {
+  Vec3 pA = Vec3::Zero();  // point on A's surface, world [m]
+  Vec3 pB = Vec3::Zero();  // point on B's surface, world [m]
+  Vec3 n = Vec3::UnitY();  // unit normal from B to A: the report's p_b·n <= p_a·n + hi
+  double depth = 0;        // (pB - pA)·n: penetration > 0; speculative points have depth < 0 [m]
+};
+
+constexpr int kMaxPatchPoints = 16;
+struct ContactPatch {
+  ContactPoint p[kMaxPatchPoints];
+  int count = 0;
+  void add(const ContactPoint& c) {
+    if (count < kMaxPatchPoints) p[count++] = c;
+  }
+};
+
+// Per-thread scratch for FCL so that a query does not allocate once warmed up.
+class Narrowphase {
+ public:
+  Narrowphase();
+  // Contact points between A and B. B may be a plane or a static triangle mesh; A may not.
+  void collide(const Shape& shapeA, const CollisionShape& cA, const Pose& poseA, const Shape& shapeB,
+               const CollisionShape& cB, const Pose& poseB, ContactPatch& out);
+
+ private:
+  fcl::CollisionRequestd request_;
+  fcl::CollisionResultd result_;
+};
+
+// Reduces a patch to at most four points that keep its area: the deepest, the one furthest from
+// it, then the two that enlarge the enclosed area most.
+void reducePatch(ContactPatch& patch, int maxPoints = 4);
+
+// Clipping, exposed for tests: points of the incident feature that lie over the reference
+// feature, with the reference on body B when refIsB. `n` points from B to A.
+void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec3& n, ContactPatch& out);
+
+}  // namespace substep

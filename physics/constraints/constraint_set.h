@@ -1,0 +1,60 @@
+// s2, constraint formulation: every joint and contact point of the step as rows of J̌ with their
+// biases, in solve order (joints first, then contacts), grouped into solve units.
+#pragma once
+
+#include "physics/collision/manifold.h"
+#include "physics/constraints/contact.h"
+#include "physics/constraints/row.h"
+#include "physics/model.h"
+#include "physics/settings.h"
+
+#include <vector>
+
+namespace substep {
+
+class ConstraintSet {
+ public:
+  struct JointRef {
+    int joint = 0;    // index in Model::joints
+    int first = 0;    // its first row
+    int count = 0;    // its rows this step (limits and motors may add or drop rows)
+  };
+
+  // What a sub-step re-formulation recomputes.
+  enum class Refresh {
+    All,             // A3 (proc3:15): J̌ and β of every constraint from the stepped coordinates
+    JointJacobians,  // A4/A5 (IV.3.2): J̌ of the joints; biases follow the update rule; contacts held
+  };
+
+  // Formulates everything at `poses` for time step h (the sub-step h/n under A3-A5). The rows'
+  // M̌⁻¹J̌ᵀ are scaled by applyScale (κ under A5, else 1). Impulses start at zero, or at last
+  // step's when warm starting.
+  void build(const Model& model, const std::vector<Manifold>& manifolds, const std::vector<Pose>& poses,
+             const std::vector<BodyMass>& mass, const SolverSettings& settings, double h, double applyScale);
+  void reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h, Refresh what,
+                   double applyScale);
+  // Keeps this step's impulses: in the manifolds (for warm starting and overlays) and per joint.
+  void storeImpulses(std::vector<Manifold>& manifolds);
+
+  std::vector<Row> rows;
+  std::vector<SolveUnit> units;
+  std::vector<ContactDef> contacts;  // contact k owns rows contactFirstRow + 3k .. + 3k + 2
+  std::vector<JointRef> joints;
+  int contactFirstRow = 0;
+
+  // Largest penetration of any contact point and largest joint error at `poses` [m].
+  double maxPenetration(const std::vector<Pose>& poses) const;
+  double maxJointError(const std::vector<Pose>& poses) const;
+
+ private:
+  void formulateJoint(const JointRef& ref, const std::vector<Pose>& poses, double h, bool jacobianOnly);
+  void finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale);
+
+  const Model* model_ = nullptr;
+  double slop_ = 0;
+  bool block_ = false;
+  std::vector<double> jointLambda_;  // per joint row, last step's impulses
+  std::vector<int> jointLambdaFirst_;
+};
+
+}  // namespace substep

@@ -1,0 +1,35 @@
+// Reusable constraint parts, as Jolt builds its joints from them: every constraint in
+// physics/constraints/ is a few of these rows.
+#pragma once
+
+#include "physics/constraints/row.h"
+#include "physics/math.h"
+
+namespace substep {
+
+// Axis part: the relative velocity of two points along a world axis u.
+//   C = (pA - pB)·u,  Ċ = u·vA + (rA×u)·ωA - u·vB - (rB×u)·ωB
+//   J̌ = (u, R_A⁻¹(rA×u), -u, -R_B⁻¹(rB×u))     (report III.1: rotational parts k -> R⁻¹k)
+// rA = pA - xA and rB = pB - xB are the world arms σ of the report's IV.3.1.1.
+inline void axisRow(Row& r, int a, int b, const Pose& A, const Pose& B, const Vec3& rA, const Vec3& rB,
+                    const Vec3& u) {
+  r.a = a;
+  r.b = b;
+  r.linA = u;
+  r.angA = A.unrotate(rA.cross(u));
+  r.linB = -u;
+  r.angB = -B.unrotate(rB.cross(u));
+}
+
+// Angle part: the relative angular velocity about a world axis u.
+//   Ċ = u·(ωA - ωB),  J̌ = (0, R_A⁻¹u, 0, -R_B⁻¹u)
+inline void angleRow(Row& r, int a, int b, const Pose& A, const Pose& B, const Vec3& u) {
+  r.a = a;
+  r.b = b;
+  r.linA.setZero();
+  r.angA = A.unrotate(u);
+  r.linB.setZero();
+  r.angB = -B.unrotate(u);
+}
+
+}  // namespace substep

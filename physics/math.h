@@ -1,0 +1,75 @@
+// Small math vocabulary shared by the whole physics library.
+// Units are SI; the world is right-handed with Y up. Quaternions are printed [w, x, y, z].
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cmath>
+
+namespace substep {
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Quat = Eigen::Quaterniond;
+
+// A rigid transform: x_world = R(q) x_local + p.
+struct Pose {
+  Vec3 p = Vec3::Zero();
+  Quat q = Quat::Identity();
+
+  Vec3 apply(const Vec3& local) const { return q * local + p; }
+  Vec3 rotate(const Vec3& local) const { return q * local; }
+  Vec3 unrotate(const Vec3& world) const { return q.conjugate() * world; }
+};
+
+// The report's R_q(a): the unit quaternion of the rotation vector a (axis a/|a|, angle |a|).
+// Exact exponential map; near zero the series keeps it smooth and unit length.
+inline Quat Rq(const Vec3& a) {
+  const double theta = a.norm();
+  const double half = 0.5 * theta;
+  double s;  // sin(theta/2)/theta
+  if (theta < 1e-6) {
+    s = 0.5 - theta * theta / 48.0;
+  } else {
+    s = std::sin(half) / theta;
+  }
+  return Quat(std::cos(half), s * a.x(), s * a.y(), s * a.z());
+}
+
+// The inverse of Rq: rotation vector of a unit quaternion (angle in [0, pi]).
+inline Vec3 rotationVector(const Quat& qIn) {
+  Quat q = qIn;
+  if (q.w() < 0) q.coeffs() = -q.coeffs();  // q and -q are the same rotation
+  const Vec3 v = q.vec();
+  const double s = v.norm();
+  if (s < 1e-12) return 2.0 * v;
+  const double angle = 2.0 * std::atan2(s, q.w());
+  return v * (angle / s);
+}
+
+// Angle of the rotation that takes a to b (both unit), in radians.
+inline double angleBetween(const Quat& a, const Quat& b) {
+  return rotationVector(a.conjugate() * b).norm();
+}
+
+inline Mat3 skew(const Vec3& a) {
+  Mat3 m;
+  m << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  return m;
+}
+
+// Two unit vectors orthogonal to n and to each other (friction directions).
+inline void tangentBasis(const Vec3& n, Vec3& t1, Vec3& t2) {
+  // Pick the axis least aligned with n so the cross product is well conditioned.
+  if (std::abs(n.x()) < 0.57735) {
+    t1 = Vec3(0, n.z(), -n.y()).normalized();  // n x e_x
+  } else {
+    t1 = Vec3(n.z(), 0, -n.x()).normalized();  // e_y x n
+  }
+  t2 = n.cross(t1);
+}
+
+inline bool allFinite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+
+}  // namespace substep

@@ -1,0 +1,139 @@
+#include "physics/world.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace substep {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+bool isSurface(ShapeType t) { return t == ShapeType::Plane || t == ShapeType::TriangleMesh; }
+
+}  // namespace
+
+World::World(const Model& model, const SolverSettings& settings, const State& initial)
+    : model_(model), settings_(settings), state_(initial), broadphase_(model), stepper_(makeStepper(settings.algorithm)) {
+  if (state_.bodies.size() != model.bodies.size())
+    throw std::invalid_argument("World: the state has " + std::to_string(state_.bodies.size()) + " bodies, the model " +
+                                std::to_string(model.bodies.size()));
+  for (const Body& b : model.bodies)
+    if (!b.isStatic && isSurface(b.shape.type))
+      throw std::invalid_argument("World: body \"" + b.name + "\": planes and triangle meshes must be static");
+  ctx_.model = &model_;
+  ctx_.settings = &settings_;
+  ctx_.state = &state_;
+  ctx_.constraints = &constraints_;
+  const size_t nb = model.bodies.size();
+  ctx_.mass.resize(nb);
+  for (size_t i = 0; i < nb; ++i) {
+    const Body& b = model.bodies[i];
+    if (!b.isStatic) ctx_.mass[i] = BodyMass{b.invMass, b.invInertia};
+  }
+  ctx_.poses.resize(nb);
+  ctx_.v.resize(nb);
+  ctx_.w.resize(nb);
+  ctx_.subV.resize(nb * static_cast<size_t>(settings.substeps));
+  ctx_.subW.resize(nb * static_cast<size_t>(settings.substeps));
+}
+
+World::~World() = default;
+
+void World::geometry() {
+  broadphase_.update(state_);
+  broadphase_.findPairs(pairs_);
+  manifolds_.beginStep();
+  ContactPatch patch;
+  for (const auto& [i, j] : pairs_) {
+    // A plane or triangle mesh is always B, so the normal points out of it.
+    const bool swap = isSurface(model_.bodies[static_cast<size_t>(i)].shape.type);
+    const int a = swap ? j : i, b = swap ? i : j;
+    const Body& A = model_.bodies[static_cast<size_t>(a)];
+    const Body& B = model_.bodies[static_cast<size_t>(b)];
+    const Pose pA = state_.bodies[static_cast<size_t>(a)].pose();
+    const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
+    narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB, patch);
+    if (patch.count == 0) continue;
+    manifolds_.add(a, b, pA, pB, std::sqrt(A.friction * B.friction), std::max(A.restitution, B.restitution), patch);
+  }
+  report_.pairs = static_cast<int>(pairs_.size());
+  report_.manifolds = static_cast<int>(manifolds_.manifolds().size());
+  int points = 0;
+  for (const Manifold& m : manifolds_.manifolds()) points += m.count;
+  report_.contactPoints = points;
+}
+
+void World::formulate() {
+  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+    ctx_.poses[i] = state_.bodies[i].pose();
+    ctx_.v[i] = state_.bodies[i].v;
+    ctx_.w[i] = state_.bodies[i].w;
+  }
+  const double hSub = settings_.dt / settings_.substeps;
+  const double applyScale = settings_.algorithm == Algorithm::A5 ? settings_.kappa : 1.0;
+  constraints_.build(model_, manifolds_.manifolds(), ctx_.poses, ctx_.mass, settings_, hSub, applyScale);
+}
+
+const StepReport& World::step() {
+  auto t0 = Clock::now();
+  geometry();
+  report_.times.s1 = since(t0);
+
+  t0 = Clock::now();
+  formulate();
+  report_.times.s2 = since(t0);
+
+  t0 = Clock::now();
+  stepper_->stepVelocities(ctx_);
+  report_.times.s3 = since(t0);
+
+  t0 = Clock::now();
+  stepper_->stepCoordinates(ctx_);
+  report_.times.s4 = since(t0);
+
+  constraints_.storeImpulses(manifolds_.manifolds());
+  report_.solver = ctx_.stats;
+  total_ += report_.times;
+  state_.time += settings_.dt;
+  state_.step += 1;
+  report_.finite = state_.finite();
+  return report_;
+}
+
+double World::kineticEnergy() const {
+  double e = 0;
+  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+    const Body& b = model_.bodies[i];
+    if (b.isStatic) continue;
+    const BodyState& s = state_.bodies[i];
+    e += 0.5 * b.mass * s.v.squaredNorm() + 0.5 * s.w.dot(b.inertia.cwiseProduct(s.w));
+  }
+  return e;
+}
+
+double World::potentialEnergy() const {
+  double e = 0;
+  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+    const Body& b = model_.bodies[i];
+    if (!b.isStatic) e -= b.mass * model_.gravity.dot(state_.bodies[i].x);
+  }
+  return e;
+}
+
+double World::maxPenetration() const {
+  std::vector<Pose> poses(state_.bodies.size());
+  for (size_t i = 0; i < poses.size(); ++i) poses[i] = state_.bodies[i].pose();
+  return constraints_.maxPenetration(poses);
+}
+
+double World::maxJointError() const {
+  std::vector<Pose> poses(state_.bodies.size());
+  for (size_t i = 0; i < poses.size(); ++i) poses[i] = state_.bodies[i].pose();
+  return constraints_.maxJointError(poses);
+}
+
+}  // namespace substep

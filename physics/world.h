@@ -1,0 +1,84 @@
+// The step pipeline, the report's four stages in order (IV.2.1):
+//   s1 geometry        broadphase (FCL AABB tree), narrowphase (FCL + clipping), manifolds
+//   s2 formulation     J̌ and β of every joint and contact point (for the step h/n)
+//   s3 velocities      the stepper's velocity stepping (A1 .. A5)
+//   s4 coordinates     the stepper's coordinate stepping
+// Each stage is timed, so a run can say where its time went.
+#pragma once
+
+#include "physics/collision/broadphase.h"
+#include "physics/collision/manifold.h"
+#include "physics/collision/narrowphase.h"
+#include "physics/constraints/constraint_set.h"
+#include "physics/model.h"
+#include "physics/settings.h"
+#include "physics/state.h"
+#include "physics/steppers/stepper.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace substep {
+
+struct StageTimes {
+  double s1 = 0, s2 = 0, s3 = 0, s4 = 0;  // [s]
+  double total() const { return s1 + s2 + s3 + s4; }
+  StageTimes& operator+=(const StageTimes& o) {
+    s1 += o.s1, s2 += o.s2, s3 += o.s3, s4 += o.s4;
+    return *this;
+  }
+};
+
+struct StepReport {
+  bool finite = true;
+  StageTimes times;      // this step
+  StepStats solver;
+  int pairs = 0;         // broadphase pairs
+  int manifolds = 0;
+  int contactPoints = 0;
+};
+
+class World {
+ public:
+  // The model must outlive the world.
+  World(const Model& model, const SolverSettings& settings, const State& initial);
+  ~World();
+
+  // One step of length settings.dt. Returns finite = false (and leaves the state as it came
+  // out) when any coordinate or velocity is no longer finite.
+  const StepReport& step();
+
+  const Model& model() const { return model_; }
+  const SolverSettings& settings() const { return settings_; }
+  const State& state() const { return state_; }
+  const std::vector<Manifold>& manifolds() const { return manifolds_.manifolds(); }
+  const ConstraintSet& constraints() const { return constraints_; }
+  const StepReport& lastReport() const { return report_; }
+  const StageTimes& totalTimes() const { return total_; }
+
+  // Measures of the current state.
+  double kineticEnergy() const;    // Σ ½ m |v|² + ½ v̌ᵀ I v̌ [J]
+  double potentialEnergy() const;  // Σ -m g·x [J]
+  double maxPenetration() const;   // deepest contact point of the last step, at the current coordinates [m]
+  double maxJointError() const;    // largest joint separation at the current coordinates [m]
+
+ private:
+  void geometry();                 // s1
+  void formulate();                // s2
+
+  const Model& model_;
+  SolverSettings settings_;
+  State state_;
+  Broadphase broadphase_;
+  Narrowphase narrowphase_;
+  ManifoldCache manifolds_;
+  ConstraintSet constraints_;
+  std::unique_ptr<Stepper> stepper_;
+  StepContext ctx_;
+  std::vector<std::pair<int, int>> pairs_;
+  StepReport report_;
+  StageTimes total_;
+};
+
+}  // namespace substep

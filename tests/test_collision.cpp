@@ -1,0 +1,254 @@
+// s1: what FCL gives and the manifolds built on it (clipping of supporting features, reduction,
+// persistence), and the broadphase's pairs.
+#include "physics/collision/broadphase.h"
+#include "physics/collision/manifold.h"
+#include "physics/collision/narrowphase.h"
+
+#include <gtest/gtest.h>
+
+using namespace substep;
+
+namespace {
+
+Shape box(double hx, double hy, double hz) {
+  Shape s;
+  s.type = ShapeType::Box;
+  s.halfExtents = Vec3(hx, hy, hz);
+  return s;
+}
+Shape capsule(double r, double hh) {
+  Shape s;
+  s.type = ShapeType::Capsule;
+  s.radius = r;
+  s.halfHeight = hh;
+  return s;
+}
+Shape cylinder(double r, double hh) {
+  Shape s = capsule(r, hh);
+  s.type = ShapeType::Cylinder;
+  return s;
+}
+Shape sphere(double r) {
+  Shape s;
+  s.type = ShapeType::Sphere;
+  s.radius = r;
+  return s;
+}
+Quat rot(double angle, const Vec3& axis) { return Quat(Eigen::AngleAxisd(angle, axis.normalized())); }
+
+// The ground: a static box whose top face is y = 0.
+const Shape kGround = box(10, 0.5, 10);
+const Pose kGroundPose{Vec3(0, -0.5, 0), Quat::Identity()};
+
+ContactPatch collide(const Shape& a, const Pose& pa, const Shape& b = kGround, const Pose& pb = kGroundPose) {
+  Narrowphase np;
+  ContactPatch patch;
+  np.collide(a, makeCollisionShape(a), pa, b, makeCollisionShape(b), pb, patch);
+  return patch;
+}
+
+void expectConsistent(const ContactPatch& p) {
+  for (int i = 0; i < p.count; ++i) {
+    EXPECT_NEAR(p.p[i].n.norm(), 1.0, 1e-9);
+    EXPECT_NEAR((p.p[i].pB - p.p[i].pA).dot(p.p[i].n), p.p[i].depth, 1e-9);
+  }
+}
+
+}  // namespace
+
+TEST(Narrowphase, BoxRestingOnGroundHasFourCorners) {
+  const ContactPatch p = collide(box(0.5, 0.5, 0.5), Pose{Vec3(0.3, 0.49, -0.2), Quat::Identity()});
+  ASSERT_EQ(p.count, 4);
+  expectConsistent(p);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_LT((p.p[i].n - Vec3::UnitY()).norm(), 1e-9);
+    EXPECT_NEAR(p.p[i].depth, 0.01, 1e-9);
+    EXPECT_NEAR(std::abs(p.p[i].pA.x() - 0.3), 0.5, 1e-9);
+    EXPECT_NEAR(std::abs(p.p[i].pA.z() + 0.2), 0.5, 1e-9);
+    EXPECT_NEAR(p.p[i].pB.y(), 0.0, 1e-9);
+  }
+}
+
+TEST(Narrowphase, BoxOnBoxKeepsTheOverlapOfTheFaces) {
+  // A unit box shifted by half its width on another: the overlap is a 0.5 x 1 rectangle.
+  const ContactPatch p =
+      collide(box(0.5, 0.5, 0.5), Pose{Vec3(0.5, 1.49, 0), Quat::Identity()}, box(0.5, 0.5, 0.5), Pose{Vec3(0, 0.5, 0), Quat::Identity()});
+  ASSERT_EQ(p.count, 4);
+  expectConsistent(p);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_GE(p.p[i].pA.x(), -1e-9);
+    EXPECT_LE(p.p[i].pA.x(), 0.5 + 1e-9);
+    EXPECT_NEAR(p.p[i].depth, 0.01, 1e-9);
+  }
+}
+
+TEST(Narrowphase, TiltedBoxTouchesWithAnEdgeOrACorner) {
+  const double a = 0.3;
+  const double low = 0.5 * std::cos(a) + 0.5 * std::sin(a);
+  const ContactPatch edge = collide(box(0.5, 0.5, 0.5), Pose{Vec3(0, low - 0.01, 0), rot(a, Vec3::UnitZ())});
+  ASSERT_EQ(edge.count, 2);
+  expectConsistent(edge);
+  EXPECT_NEAR(edge.p[0].depth, 0.01, 1e-6);
+  EXPECT_NEAR(std::abs(edge.p[0].pA.z()), 0.5, 1e-6);
+  const Quat corner = rot(0.3, Vec3::UnitZ()) * rot(0.4, Vec3::UnitX());
+  double lowest = 0;
+  for (int i = 0; i < 8; ++i) {
+    const Vec3 c((i & 1) ? 0.5 : -0.5, (i & 2) ? 0.5 : -0.5, (i & 4) ? 0.5 : -0.5);
+    lowest = std::min(lowest, (corner * c).y());
+  }
+  const ContactPatch one = collide(box(0.5, 0.5, 0.5), Pose{Vec3(0, -lowest - 0.01, 0), corner});
+  ASSERT_EQ(one.count, 1);
+  EXPECT_NEAR(one.p[0].depth, 0.01, 1e-6);
+}
+
+TEST(Narrowphase, LyingCapsuleGetsBothEnds) {
+  // FCL gives one point for capsule-box; clipping the capsule's side line gives both ends.
+  const ContactPatch p = collide(capsule(0.2, 0.5), Pose{Vec3(0.1, 0.19, 0.2), rot(M_PI / 2, Vec3::UnitX())});
+  ASSERT_EQ(p.count, 2);
+  expectConsistent(p);
+  EXPECT_NEAR(std::abs(p.p[0].pA.z() - p.p[1].pA.z()), 1.0, 1e-6);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_NEAR(p.p[i].depth, 0.01, 1e-6);
+    EXPECT_NEAR(p.p[i].pA.y(), -0.01, 1e-6);
+  }
+  // Standing on one end, it has one point.
+  const ContactPatch s = collide(capsule(0.2, 0.5), Pose{Vec3(0, 0.69, 0), rot(0.5, Vec3::UnitX())});
+  EXPECT_EQ(s.count, 0);  // 0.5 rad tilt lifts it: lowest point at 0.69 - (0.5 cos 0.5 + 0.2) > 0
+  const double y = 0.5 * std::cos(0.5) + 0.2 - 0.01;
+  const ContactPatch t = collide(capsule(0.2, 0.5), Pose{Vec3(0, y, 0), rot(0.5, Vec3::UnitX())});
+  ASSERT_EQ(t.count, 1);
+  EXPECT_NEAR(t.p[0].depth, 0.01, 1e-5);
+}
+
+TEST(Narrowphase, SphereAndCylinder) {
+  const ContactPatch s = collide(sphere(0.3), Pose{Vec3(1, 0.29, 2), Quat::Identity()});
+  ASSERT_EQ(s.count, 1);
+  EXPECT_LT((s.p[0].pA - Vec3(1, -0.01, 2)).norm(), 1e-6);
+  EXPECT_NEAR(s.p[0].depth, 0.01, 1e-6);
+  const ContactPatch side = collide(cylinder(0.2, 0.5), Pose{Vec3(0, 0.19, 0), rot(M_PI / 2, Vec3::UnitZ())});
+  EXPECT_EQ(side.count, 2);
+  const ContactPatch cap = collide(cylinder(0.2, 0.5), Pose{Vec3(0, 0.49, 0), Quat::Identity()});
+  EXPECT_EQ(cap.count, 4);  // the rim's octagon, reduced to four points
+  for (int i = 0; i < cap.count; ++i) EXPECT_NEAR(Vec3(cap.p[i].pA.x(), 0, cap.p[i].pA.z()).norm(), 0.2, 1e-9);
+}
+
+TEST(Narrowphase, PlaneAndTriangleMeshGiveAFace) {
+  Shape plane;
+  plane.type = ShapeType::Plane;
+  plane.normal = Vec3::UnitY();
+  plane.offset = 0;
+  const ContactPatch p = collide(box(0.5, 0.5, 0.5), Pose{Vec3(0, 0.49, 0), Quat::Identity()}, plane, Pose{});
+  ASSERT_EQ(p.count, 4);
+  expectConsistent(p);
+  auto mesh = std::make_shared<Mesh>();
+  mesh->vertices = {Vec3(-5, 0, -5), Vec3(5, 0, -5), Vec3(5, 0, 5), Vec3(-5, 0, 5)};
+  mesh->triangles = {{0, 2, 1}, {0, 3, 2}};
+  Shape m;
+  m.type = ShapeType::TriangleMesh;
+  m.mesh = mesh;
+  const ContactPatch q = collide(box(0.5, 0.5, 0.5), Pose{Vec3(0.2, 0.49, 0.1), Quat::Identity()}, m, Pose{});
+  ASSERT_EQ(q.count, 4);
+  expectConsistent(q);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_LT((q.p[i].n - Vec3::UnitY()).norm(), 1e-9);
+    EXPECT_NEAR(q.p[i].depth, 0.01, 1e-9);
+  }
+}
+
+TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
+  ManifoldCache cache;
+  const Shape b = box(0.5, 0.5, 0.5);
+  Pose pose{Vec3(0, 0.49, 0), Quat::Identity()};
+  cache.beginStep();
+  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose));
+  ASSERT_EQ(cache.manifolds().size(), 1u);
+  uint32_t ids[4];
+  for (int i = 0; i < 4; ++i) ids[i] = cache.manifolds()[0].points[i].id;
+  cache.manifolds()[0].points[0].lambda[0] = 1.5;
+  // A small slide keeps every point; its impulse comes along.
+  pose.p.x() += 0.005;
+  cache.beginStep();
+  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose));
+  const Manifold& m = cache.manifolds()[0];
+  int kept = 0;
+  for (int i = 0; i < m.count; ++i)
+    for (int k = 0; k < 4; ++k)
+      if (m.points[i].id == ids[k]) {
+        ++kept;
+        EXPECT_EQ(m.points[i].age, 1);
+        if (k == 0) {
+          EXPECT_EQ(m.points[i].lambda[0], 1.5);
+        }
+      }
+  EXPECT_EQ(kept, 4);
+  // A jump of 30 cm: the same corners of the box, but elsewhere on the ground: all points are new.
+  pose.p.x() += 0.3;
+  cache.beginStep();
+  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose));
+  for (int i = 0; i < cache.manifolds()[0].count; ++i)
+    for (int k = 0; k < 4; ++k) EXPECT_NE(cache.manifolds()[0].points[i].id, ids[k]);
+}
+
+TEST(Manifold, ReductionKeepsTheDeepestAndTheArea) {
+  ContactPatch p;
+  for (int i = 0; i < 8; ++i) {
+    const double a = i * M_PI / 4;
+    p.add(ContactPoint{Vec3(std::cos(a), 0, std::sin(a)), Vec3(std::cos(a), 0.01, std::sin(a)), Vec3::UnitY(), i == 3 ? 0.02 : 0.01});
+  }
+  reducePatch(p);
+  ASSERT_EQ(p.count, 4);
+  EXPECT_EQ(p.p[0].depth, 0.02);  // the deepest is kept first
+  // The four kept points span the octagon: their quad has area 2 (a square inscribed in the unit circle).
+  double area = 0;
+  Vec3 c = Vec3::Zero();
+  for (int i = 0; i < 4; ++i) c += p.p[i].pA / 4;
+  std::vector<std::pair<double, Vec3>> byAngle;
+  for (int i = 0; i < 4; ++i) byAngle.push_back({std::atan2(p.p[i].pA.z() - c.z(), p.p[i].pA.x() - c.x()), p.p[i].pA});
+  std::sort(byAngle.begin(), byAngle.end(), [](auto& x, auto& y) { return x.first < y.first; });
+  for (int i = 0; i < 4; ++i) {
+    const Vec3& u = byAngle[static_cast<size_t>(i)].second;
+    const Vec3& v = byAngle[static_cast<size_t>((i + 1) % 4)].second;
+    area += 0.5 * (u.x() * v.z() - u.z() * v.x());
+  }
+  EXPECT_NEAR(std::abs(area), 2.0, 1e-9);
+}
+
+TEST(Broadphase, FindsOverlapsInOrderAndSkipsJointsAndStatics) {
+  Model m;
+  auto add = [&](const std::string& n, const Shape& s, bool isStatic) {
+    Body b;
+    b.name = n;
+    b.shape = s;
+    b.isStatic = isStatic;
+    m.bodies.push_back(b);
+  };
+  add("ground", kGround, true);
+  add("wall", box(0.1, 2, 2), true);
+  add("a", box(0.5, 0.5, 0.5), false);
+  add("b", box(0.5, 0.5, 0.5), false);
+  add("c", box(0.5, 0.5, 0.5), false);
+  add("far", sphere(0.5), false);
+  Joint j;
+  j.bodyA = 3;
+  j.bodyB = 4;
+  m.joints.push_back(j);
+  State s;
+  s.bodies.resize(m.bodies.size());
+  s.bodies[0].x = kGroundPose.p;
+  s.bodies[1].x = Vec3(-0.5, 0, 0);  // overlaps the ground: static-static, skipped
+  s.bodies[2].x = Vec3(0, 0.49, 0);
+  s.bodies[3].x = Vec3(0.9, 0.49, 0);
+  s.bodies[4].x = Vec3(1.8, 0.49, 0);
+  s.bodies[5].x = Vec3(0, 10, 0);
+  Broadphase bp(m);
+  bp.update(s);
+  std::vector<std::pair<int, int>> pairs;
+  bp.findPairs(pairs);
+  const std::vector<std::pair<int, int>> expected = {{0, 2}, {0, 3}, {0, 4}, {1, 2}, {2, 3}};
+  EXPECT_EQ(pairs, expected);
+  // Moving a body updates the tree.
+  s.bodies[5].x = Vec3(1.8, 1.4, 0);
+  bp.update(s);
+  bp.findPairs(pairs);
+  EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) != pairs.end());
+}
