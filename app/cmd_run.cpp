@@ -102,15 +102,15 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       std::string stopReason;
       for (long long k = 1; k <= steps; ++k) {
         const StepReport& r = world.step();
-        done = k;
+        done = world.state().step;
         maxResidual = std::max(maxResidual, r.solver.residual);
         maxIterations = std::max<long long>(maxIterations, r.solver.iterations);
         sumIterations += r.solver.iterations;
         maxContacts = std::max(maxContacts, r.contactPoints);
         if (!r.finite) {
           finite = false;
-          stopReason = "a coordinate or velocity became non-finite at step " + std::to_string(k) + " (t = " +
-                       std::to_string(world.state().time) + " s)";
+          stopReason = "the simulation diverged at step " + std::to_string(k) + " (t = " +
+                       std::to_string(world.state().time) + " s): " + r.problem;
           break;
         }
         if (k % opt->every == 0 || k == steps) sample(&r);

@@ -1,5 +1,7 @@
 #include "physics/world.h"
 
+#include "physics/collision/contact_margin.h"
+
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -35,6 +37,7 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
     if (!b.isStatic) ctx_.mass[i] = BodyMass{b.invMass, b.invInertia};
   }
   ctx_.poses.resize(nb);
+  reach_.resize(nb);
   ctx_.v.resize(nb);
   ctx_.w.resize(nb);
   ctx_.subV.resize(nb * static_cast<size_t>(settings.substeps));
@@ -44,7 +47,17 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
 World::~World() = default;
 
 void World::geometry() {
-  broadphase_.update(state_);
+  // How far each body can get in this step, plus half the contact margin: a pair is examined
+  // when its bodies can meet, and speculative points cover the gap they can close.
+  const double h = settings_.dt;
+  const double gh = model_.gravity.norm() * h;
+  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+    const Body& b = model_.bodies[i];
+    const BodyState& s = state_.bodies[i];
+    reach_[i] = 0.5 * kContactMargin;
+    if (!b.isStatic) reach_[i] += h * (s.v.norm() + gh + s.w.norm() * b.shape.boundingRadius());
+  }
+  broadphase_.update(state_, reach_);
   broadphase_.findPairs(pairs_);
   manifolds_.beginStep();
   ContactPatch patch;
@@ -56,7 +69,8 @@ void World::geometry() {
     const Body& B = model_.bodies[static_cast<size_t>(b)];
     const Pose pA = state_.bodies[static_cast<size_t>(a)].pose();
     const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
-    narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB, patch);
+    narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB,
+                         reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)], patch);
     if (patch.count == 0) continue;
     manifolds_.add(a, b, pA, pB, std::sqrt(A.friction * B.friction), std::max(A.restitution, B.restitution), patch);
   }
@@ -78,7 +92,31 @@ void World::formulate() {
   constraints_.build(model_, manifolds_.manifolds(), ctx_.poses, ctx_.mass, settings_, hSub, applyScale);
 }
 
+bool World::diverged() {
+  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+    const BodyState& b = state_.bodies[i];
+    const char* what = nullptr;
+    double value = 0;
+    if (!allFinite(b.x) || !allFinite(b.v) || !allFinite(b.w) || !std::isfinite(b.q.w()) || !allFinite(b.q.vec()))
+      what = "a non-finite coordinate or velocity";
+    else if ((value = b.x.norm()) > kMaxCoordinate)
+      what = "a position beyond 1e6 m";
+    else if ((value = std::max(b.v.norm(), b.w.norm())) > kMaxSpeed)
+      what = "a speed beyond 1e6 m/s or rad/s";
+    if (what) {
+      report_.finite = false;
+      report_.problem = "body \"" + model_.bodies[i].name + "\" has " + what;
+      if (value > 0) report_.problem += " (" + std::to_string(value) + ")";
+      return true;
+    }
+  }
+  return false;
+}
+
 const StepReport& World::step() {
+  report_.finite = true;
+  report_.problem.clear();
+  if (diverged()) return report_;  // FCL's AABB tree crashes on such boxes
   auto t0 = Clock::now();
   geometry();
   report_.times.s1 = since(t0);
@@ -100,7 +138,7 @@ const StepReport& World::step() {
   total_ += report_.times;
   state_.time += settings_.dt;
   state_.step += 1;
-  report_.finite = state_.finite();
+  diverged();
   return report_;
 }
 

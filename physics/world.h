@@ -30,8 +30,13 @@ struct StageTimes {
   }
 };
 
+// Beyond these a state is taken as diverged: FCL's trees and the solvers lose all precision.
+constexpr double kMaxCoordinate = 1e6;  // [m]
+constexpr double kMaxSpeed = 1e6;       // [m/s] and [rad/s]
+
 struct StepReport {
-  bool finite = true;
+  bool finite = true;    // false: the state diverged (non-finite or beyond the limits above)
+  std::string problem;   // then: which body, and what
   StageTimes times;      // this step
   StepStats solver;
   int pairs = 0;         // broadphase pairs
@@ -45,8 +50,9 @@ class World {
   World(const Model& model, const SolverSettings& settings, const State& initial);
   ~World();
 
-  // One step of length settings.dt. Returns finite = false (and leaves the state as it came
-  // out) when any coordinate or velocity is no longer finite.
+  // One step of length settings.dt. Returns finite = false, with the body and the value in
+  // `problem`, when a coordinate or velocity is not finite or beyond kMaxCoordinate/kMaxSpeed,
+  // after the step or already before it (then without stepping).
   const StepReport& step();
 
   const Model& model() const { return model_; }
@@ -64,6 +70,7 @@ class World {
   double maxJointError() const;    // largest joint separation at the current coordinates [m]
 
  private:
+  bool diverged();                 // checks the state, fills report_.problem
   void geometry();                 // s1
   void formulate();                // s2
 
@@ -77,6 +84,7 @@ class World {
   std::unique_ptr<Stepper> stepper_;
   StepContext ctx_;
   std::vector<std::pair<int, int>> pairs_;
+  std::vector<double> reach_;  // per body: how far it can get this step, plus half the margin [m]
   StepReport report_;
   StageTimes total_;
 };

@@ -40,10 +40,11 @@ Quat rot(double angle, const Vec3& axis) { return Quat(Eigen::AngleAxisd(angle, 
 const Shape kGround = box(10, 0.5, 10);
 const Pose kGroundPose{Vec3(0, -0.5, 0), Quat::Identity()};
 
-ContactPatch collide(const Shape& a, const Pose& pa, const Shape& b = kGround, const Pose& pb = kGroundPose) {
+ContactPatch collide(const Shape& a, const Pose& pa, const Shape& b = kGround, const Pose& pb = kGroundPose,
+                     double margin = 0.005) {
   Narrowphase np;
   ContactPatch patch;
-  np.collide(a, makeCollisionShape(a), pa, b, makeCollisionShape(b), pb, patch);
+  np.collide(a, makeCollisionShape(a), pa, b, makeCollisionShape(b), pb, margin, patch);
   return patch;
 }
 
@@ -241,14 +242,45 @@ TEST(Broadphase, FindsOverlapsInOrderAndSkipsJointsAndStatics) {
   s.bodies[4].x = Vec3(1.8, 0.49, 0);
   s.bodies[5].x = Vec3(0, 10, 0);
   Broadphase bp(m);
-  bp.update(s);
+  bp.update(s, std::vector<double>(m.bodies.size(), 0.0));
   std::vector<std::pair<int, int>> pairs;
   bp.findPairs(pairs);
   const std::vector<std::pair<int, int>> expected = {{0, 2}, {0, 3}, {0, 4}, {1, 2}, {2, 3}};
   EXPECT_EQ(pairs, expected);
   // Moving a body updates the tree.
   s.bodies[5].x = Vec3(1.8, 1.4, 0);
-  bp.update(s);
+  bp.update(s, std::vector<double>(m.bodies.size(), 0.0));
   bp.findPairs(pairs);
   EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) != pairs.end());
+}
+
+// Shapes apart by less than the margin get speculative points (depth < 0): FCL's distance query
+// for primitives, the nearest triangle for meshes, the plane itself for planes.
+TEST(Narrowphase, SpeculativePointsWithinTheMargin) {
+  const Shape b = box(0.5, 0.5, 0.5);
+  const ContactPatch near = collide(b, Pose{Vec3(0, 0.503, 0), Quat::Identity()});
+  ASSERT_EQ(near.count, 4);
+  expectConsistent(near);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(near.p[i].depth, -0.003, 1e-9);
+  EXPECT_EQ(collide(b, Pose{Vec3(0, 0.51, 0), Quat::Identity()}).count, 0);  // 1 cm: beyond 5 mm
+  const ContactPatch wide = collide(b, Pose{Vec3(0, 0.51, 0), Quat::Identity()}, kGround, kGroundPose, 0.02);
+  EXPECT_EQ(wide.count, 4);
+  const ContactPatch cap = collide(capsule(0.2, 0.5), Pose{Vec3(0, 0.203, 0), rot(M_PI / 2, Vec3::UnitX())});
+  ASSERT_EQ(cap.count, 2);
+  EXPECT_NEAR(cap.p[0].depth, -0.003, 1e-6);
+  Shape plane;
+  plane.type = ShapeType::Plane;
+  const ContactPatch pl = collide(b, Pose{Vec3(0, 0.503, 0), Quat::Identity()}, plane, Pose{});
+  ASSERT_EQ(pl.count, 4);
+  EXPECT_NEAR(pl.p[0].depth, -0.003, 1e-12);
+  auto mesh = std::make_shared<Mesh>();
+  mesh->vertices = {Vec3(-5, 0, -5), Vec3(5, 0, -5), Vec3(5, 0, 5), Vec3(-5, 0, 5)};
+  mesh->triangles = {{0, 2, 1}, {0, 3, 2}};
+  Shape m;
+  m.type = ShapeType::TriangleMesh;
+  m.mesh = mesh;
+  const ContactPatch sm = collide(sphere(0.3), Pose{Vec3(0.7, 0.31, 1.2), Quat::Identity()}, m, Pose{}, 0.02);
+  ASSERT_EQ(sm.count, 1);
+  EXPECT_NEAR(sm.p[0].depth, -0.01, 1e-9);
+  EXPECT_LT((sm.p[0].pB - Vec3(0.7, 0, 1.2)).norm(), 1e-9);
 }

@@ -4,6 +4,14 @@
 
 namespace substep {
 
+struct Broadphase::Object : fcl::CollisionObjectd {
+  using fcl::CollisionObjectd::CollisionObjectd;
+  void grow(double d) {
+    aabb.min_ -= fcl::Vector3d::Constant(d);
+    aabb.max_ += fcl::Vector3d::Constant(d);
+  }
+};
+
 namespace {
 
 struct PairCollector {
@@ -37,7 +45,7 @@ fcl::Transform3d transformOf(const BodyState& s, const Pose& offset) {
 Broadphase::Broadphase(const Model& model) : model_(model) {
   for (size_t i = 0; i < model.bodies.size(); ++i) {
     shapes_.push_back(makeCollisionShape(model.bodies[i].shape));
-    objects_.push_back(std::make_unique<fcl::CollisionObjectd>(shapes_.back().geometry));
+    objects_.push_back(std::make_unique<Object>(shapes_.back().geometry));
     objects_.back()->setUserData(reinterpret_cast<void*>(static_cast<intptr_t>(i)));
   }
   for (const Joint& j : model.joints)
@@ -47,12 +55,13 @@ Broadphase::Broadphase(const Model& model) : model_(model) {
 
 Broadphase::~Broadphase() = default;
 
-void Broadphase::update(const State& state) {
+void Broadphase::update(const State& state, const std::vector<double>& reach) {
   const bool first = manager_.size() == 0;
   for (size_t i = 0; i < objects_.size(); ++i) {
     if (!first && model_.bodies[i].isStatic) continue;
     objects_[i]->setTransform(transformOf(state.bodies[i], shapes_[i].offset));
     objects_[i]->computeAABB();
+    objects_[i]->grow(reach[i]);
   }
   if (first) {
     std::vector<fcl::CollisionObjectd*> all;

@@ -3,6 +3,7 @@
 #include "physics/collision/contact_margin.h"
 
 #include <fcl/narrowphase/collision.h>
+#include <fcl/narrowphase/distance.h>
 
 #include <algorithm>
 #include <cmath>
@@ -88,11 +89,11 @@ Vec3 polygonNormal(const Feature& f) {  // Newell's method
 }
 
 void addClipped(const Vec3& p, const Vec3& r0, const Vec3& nR, const Vec3& dirI, bool refIsB, const Vec3& n,
-                ContactPatch& out) {
+                double margin, ContactPatch& out) {
   const double den = dirI.dot(nR);
   if (den < 0.1) return;  // reference face nearly along the normal: no meaningful projection
   const double s = (p - r0).dot(nR) / den;  // separation along the normal
-  if (s > kContactMargin) return;
+  if (s > margin) return;
   const Vec3 q = p - s * dirI;
   ContactPoint c;
   c.n = n;
@@ -128,7 +129,8 @@ bool insideTriangle(const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c, 
 
 }  // namespace
 
-void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec3& n, ContactPatch& out) {
+void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec3& n, double margin,
+                  ContactPatch& out) {
   const Vec3 dirI = refIsB ? n : Vec3(-n);  // from the reference towards the incident body
   if (ref.count >= 3) {
     Vec3 nR = polygonNormal(ref);
@@ -153,7 +155,7 @@ void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec
         k = clipPolygon(cur, k, a, m, nxt, cap);
         std::swap(cur, nxt);
       }
-      for (int i = 0; i < k; ++i) addClipped(cur[i], ref.p[0], nR, dirI, refIsB, n, out);
+      for (int i = 0; i < k; ++i) addClipped(cur[i], ref.p[0], nR, dirI, refIsB, n, margin, out);
     } else if (inc.count == 2) {
       Vec3 a = inc.p[0], b = inc.p[1];
       for (int i = 0; i < ref.count; ++i) {
@@ -163,8 +165,8 @@ void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec
         if ((centroid - r0).dot(m) > 0) m = -m;
         if (!clipSegment(a, b, r0, m)) return;
       }
-      addClipped(a, ref.p[0], nR, dirI, refIsB, n, out);
-      if ((b - a).squaredNorm() > 1e-12) addClipped(b, ref.p[0], nR, dirI, refIsB, n, out);
+      addClipped(a, ref.p[0], nR, dirI, refIsB, n, margin, out);
+      if ((b - a).squaredNorm() > 1e-12) addClipped(b, ref.p[0], nR, dirI, refIsB, n, margin, out);
     }
     return;
   }
@@ -178,8 +180,8 @@ void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec
       Vec3 nR = dirI - dirI.dot(dR) * dR;
       if (nR.squaredNorm() < 1e-12) return;
       nR.normalize();
-      addClipped(a, ref.p[0], nR, dirI, refIsB, n, out);
-      if ((b - a).squaredNorm() > 1e-12) addClipped(b, ref.p[0], nR, dirI, refIsB, n, out);
+      addClipped(a, ref.p[0], nR, dirI, refIsB, n, margin, out);
+      if ((b - a).squaredNorm() > 1e-12) addClipped(b, ref.p[0], nR, dirI, refIsB, n, margin, out);
     } else {
       Vec3 cr, ci;
       closestPointsOfSegments(ref.p[0], ref.p[1], inc.p[0], inc.p[1], cr, ci);
@@ -188,7 +190,7 @@ void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec
       c.pA = refIsB ? ci : cr;
       c.pB = refIsB ? cr : ci;
       c.depth = (c.pB - c.pA).dot(n);
-      if (c.depth >= -kContactMargin) out.add(c);
+      if (c.depth >= -margin) out.add(c);
     }
   }
 }
@@ -234,55 +236,125 @@ void reducePatch(ContactPatch& patch, int maxPoints) {
   std::copy(kept, kept + k, patch.p);
 }
 
-Narrowphase::Narrowphase() : request_(4, true) { request_.gjk_solver_type = fcl::GST_LIBCCD; }
+Narrowphase::Narrowphase() : request_(4, true), distanceRequest_(true) {
+  request_.gjk_solver_type = fcl::GST_LIBCCD;
+  distanceRequest_.gjk_solver_type = fcl::GST_LIBCCD;
+}
+
+namespace {
+
+// A against one triangle of a static mesh: A's feature clipped to the triangle, along the
+// triangle's own normal turned towards A (FCL's mesh normals are unreliable).
+void againstTriangle(const Shape& sA, const Pose& poseA, const Mesh& m, const Pose& poseB, intptr_t tri, double margin,
+                     ContactPatch& out) {
+  if (tri < 0 || tri >= static_cast<intptr_t>(m.triangles.size())) return;
+  Feature t;
+  t.count = 3;
+  for (int k = 0; k < 3; ++k) t.p[k] = poseB.apply(m.vertices[static_cast<size_t>(m.triangles[static_cast<size_t>(tri)][k])]);
+  Vec3 nt = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
+  if (nt.squaredNorm() < 1e-24) return;
+  nt.normalize();
+  if (nt.dot(poseA.p - t.p[0]) < 0) nt = -nt;
+  const Feature fa = supportingFeature(sA, poseA, -nt);
+  ContactPatch tmp;
+  if (fa.count == 1) {
+    const double s = (fa.p[0] - t.p[0]).dot(nt);
+    const Vec3 q = fa.p[0] - s * nt;
+    if (s <= margin && insideTriangle(q, t.p[0], t.p[1], t.p[2], 1e-6)) tmp.add(ContactPoint{fa.p[0], q, nt, -s});
+  } else {
+    clipFeatures(t, fa, true, nt, margin, tmp);
+  }
+  for (int k = 0; k < tmp.count; ++k) {
+    bool dup = false;  // neighbouring triangles share edges, and their clips share points
+    for (int j = 0; j < out.count; ++j)
+      if ((out.p[j].pA - tmp.p[k].pA).squaredNorm() < 1e-6) {
+        if (tmp.p[k].depth > out.p[j].depth) out.p[j] = tmp.p[k];
+        dup = true;
+        break;
+      }
+    if (!dup) out.add(tmp.p[k]);
+  }
+}
+
+// Convex A and B touching (depth > 0) or close (depth < 0) along n, from B to A: the points of
+// their supporting features. `fallback` is a point between them for when clipping finds none.
+void fromNormal(const Shape& sA, const Pose& poseA, const Shape& sB, const Pose& poseB, const Vec3& n, double depth,
+                double margin, const Vec3& fallback, ContactPatch& out) {
+  const Feature fA = supportingFeature(sA, poseA, -n);
+  const Feature fB = supportingFeature(sB, poseB, n);
+  if (fA.count == 1) {
+    out.add(ContactPoint{fA.p[0], fA.p[0] + depth * n, n, depth});
+    return;
+  }
+  if (fB.count == 1) {
+    out.add(ContactPoint{fB.p[0] - depth * n, fB.p[0], n, depth});
+    return;
+  }
+  // The reference is the bigger feature; between two faces, the one facing the normal best.
+  bool refIsB;
+  if (fA.count != fB.count && (fA.count < 3 || fB.count < 3)) {
+    refIsB = fB.count > fA.count;
+  } else if (fA.count >= 3) {
+    const double aB = std::abs(polygonNormal(fB).normalized().dot(n));
+    const double aA = std::abs(polygonNormal(fA).normalized().dot(n));
+    refIsB = aB >= aA;
+  } else {
+    refIsB = true;
+  }
+  clipFeatures(refIsB ? fB : fA, refIsB ? fA : fB, refIsB, n, margin, out);
+  if (out.count == 0) out.add(ContactPoint{fallback - 0.5 * depth * n, fallback + 0.5 * depth * n, n, depth});
+  reducePatch(out);
+}
+
+}  // namespace
 
 void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose& poseA, const Shape& sB,
-                          const CollisionShape& cB, const Pose& poseB, ContactPatch& out) {
+                          const CollisionShape& cB, const Pose& poseB, double margin, ContactPatch& out) {
   out.count = 0;
+  if (sB.type == ShapeType::Plane) {
+    // Analytic: A's feature towards the plane (FCL's halfspace has no distance query).
+    const Vec3 pn = poseB.rotate(sB.normal).normalized();
+    const double off = sB.offset + pn.dot(poseB.p);
+    const Feature fa = supportingFeature(sA, poseA, -pn);
+    for (int i = 0; i < fa.count; ++i) {
+      const double s = pn.dot(fa.p[i]) - off;
+      if (s <= margin) out.add(ContactPoint{fa.p[i], fa.p[i] - s * pn, pn, -s});
+    }
+    reducePatch(out);
+    return;
+  }
   const bool mesh = sB.type == ShapeType::TriangleMesh;
+  const fcl::Transform3d tA = toFcl(compose(poseA, cA.offset)), tB = toFcl(compose(poseB, cB.offset));
   request_.num_max_contacts = mesh ? 64 : 4;
   result_.clear();
-  fcl::collide(cA.geometry.get(), toFcl(compose(poseA, cA.offset)), cB.geometry.get(), toFcl(compose(poseB, cB.offset)),
-               request_, result_);
+  fcl::collide(cA.geometry.get(), tA, cB.geometry.get(), tB, request_, result_);
   const size_t nc = result_.numContacts();
-  if (nc == 0) return;
+
+  if (nc == 0) {
+    // Not touching: within the margin, speculative points (depth < 0) let the bodies close the
+    // gap in this step and no further, instead of sinking in and being pushed out.
+    distanceResult_.clear();
+    fcl::distance(cA.geometry.get(), tA, cB.geometry.get(), tB, distanceRequest_, distanceResult_);
+    const double d = distanceResult_.min_distance;
+    if (!(d > 1e-9) || d > margin) return;
+    if (mesh) {
+      // FCL's nearest points for shape-mesh pairs come in mixed frames: only the triangle is used.
+      const intptr_t tri = distanceResult_.b1 >= 0 ? distanceResult_.b1 : distanceResult_.b2;
+      againstTriangle(sA, poseA, *sB.mesh, poseB, tri, margin, out);
+      reducePatch(out);
+      return;
+    }
+    const Vec3 pa = distanceResult_.nearest_points[0], pb = distanceResult_.nearest_points[1];
+    fromNormal(sA, poseA, sB, poseB, (pa - pb) / d, -d, margin, 0.5 * (pa + pb), out);
+    return;
+  }
 
   if (mesh) {
-    // One FCL contact per triangle: clip A's feature against each triangle, with the triangle's
-    // own normal turned towards A (FCL's mesh normals are unreliable).
-    const Mesh& m = *sB.mesh;
+    // One FCL contact per triangle. FCL's shape-mesh traversal puts the triangle index in b1
+    // even with the mesh second.
     for (size_t i = 0; i < nc; ++i) {
       const auto& fc = result_.getContact(i);
-      // FCL's shape-mesh traversal puts the triangle index in b1 even with the mesh second.
-      const intptr_t tri = fc.b2 >= 0 ? fc.b2 : fc.b1;
-      if (tri < 0 || tri >= static_cast<intptr_t>(m.triangles.size())) continue;
-      Feature t;
-      t.count = 3;
-      for (int k = 0; k < 3; ++k) t.p[k] = poseB.apply(m.vertices[static_cast<size_t>(m.triangles[static_cast<size_t>(tri)][k])]);
-      Vec3 nt = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
-      if (nt.squaredNorm() < 1e-24) continue;
-      nt.normalize();
-      if (nt.dot(poseA.p - t.p[0]) < 0) nt = -nt;
-      const Feature fa = supportingFeature(sA, poseA, -nt);
-      ContactPatch tmp;
-      if (fa.count == 1) {
-        const double s = (fa.p[0] - t.p[0]).dot(nt);
-        const Vec3 q = fa.p[0] - s * nt;
-        if (s <= kContactMargin && insideTriangle(q, t.p[0], t.p[1], t.p[2], 1e-6))
-          tmp.add(ContactPoint{fa.p[0], q, nt, -s});
-      } else {
-        clipFeatures(t, fa, true, nt, tmp);
-      }
-      for (int k = 0; k < tmp.count; ++k) {
-        bool dup = false;
-        for (int j = 0; j < out.count; ++j)
-          if ((out.p[j].pA - tmp.p[k].pA).squaredNorm() < 1e-6) {
-            if (tmp.p[k].depth > out.p[j].depth) out.p[j] = tmp.p[k];
-            dup = true;
-            break;
-          }
-        if (!dup) out.add(tmp.p[k]);
-      }
+      againstTriangle(sA, poseA, *sB.mesh, poseB, fc.b2 >= 0 ? fc.b2 : fc.b1, margin, out);
     }
     if (out.count == 0) {
       // On a ridge between triangles no feature projects inside one: use FCL's points.
@@ -305,47 +377,9 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
   for (size_t i = 1; i < nc; ++i)
     if (result_.getContact(i).penetration_depth > result_.getContact(deepest).penetration_depth) deepest = i;
   const auto& fc = result_.getContact(deepest);
-  const double depth = fc.penetration_depth;
   Vec3 n = -fc.normal;
   if (n.squaredNorm() < 1e-24) return;
-  n.normalize();
-
-  if (sB.type == ShapeType::Plane) {
-    const Vec3 pn = poseB.rotate(sB.normal).normalized();
-    const double off = sB.offset + pn.dot(poseB.p);
-    const Feature fa = supportingFeature(sA, poseA, -pn);
-    for (int i = 0; i < fa.count; ++i) {
-      const double s = pn.dot(fa.p[i]) - off;
-      if (s <= kContactMargin) out.add(ContactPoint{fa.p[i], fa.p[i] - s * pn, pn, -s});
-    }
-    reducePatch(out);
-    return;
-  }
-
-  const Feature fA = supportingFeature(sA, poseA, -n);
-  const Feature fB = supportingFeature(sB, poseB, n);
-  if (fA.count == 1) {
-    out.add(ContactPoint{fA.p[0], fA.p[0] + depth * n, n, depth});
-    return;
-  }
-  if (fB.count == 1) {
-    out.add(ContactPoint{fB.p[0] - depth * n, fB.p[0], n, depth});
-    return;
-  }
-  // The reference is the bigger feature; between two faces, the one facing the normal best.
-  bool refIsB;
-  if (fA.count != fB.count && (fA.count < 3 || fB.count < 3)) {
-    refIsB = fB.count > fA.count;
-  } else if (fA.count >= 3) {
-    const double aB = std::abs(polygonNormal(fB).normalized().dot(n));
-    const double aA = std::abs(polygonNormal(fA).normalized().dot(n));
-    refIsB = aB >= aA;
-  } else {
-    refIsB = true;
-  }
-  clipFeatures(refIsB ? fB : fA, refIsB ? fA : fB, refIsB, n, out);
-  if (out.count == 0) out.add(ContactPoint{fc.pos - 0.5 * depth * n, fc.pos + 0.5 * depth * n, n, depth});
-  reducePatch(out);
+  fromNormal(sA, poseA, sB, poseB, n.normalized(), fc.penetration_depth, margin, fc.pos, out);
 }
 
 }  // namespace substep

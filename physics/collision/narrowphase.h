@@ -1,7 +1,8 @@
-// s1, narrowphase: FCL finds whether two shapes touch, with the normal and the depth; the
-// contact points come from clipping the two shapes' supporting features against each other,
-// so that a box on a box, a lying capsule or a cylinder on its side get their whole support
-// from one query (FCL gives one point for every pair but box-box). See docs/collision.md.
+// s1, narrowphase: FCL finds whether two shapes touch, with the normal and the depth (or, for
+// shapes apart by less than a margin, their distance and nearest points); the contact points
+// come from clipping the two shapes' supporting features against each other, so that a box on a
+// box, a lying capsule or a cylinder on its side get their whole support from one query (FCL
+// gives one point for every pair but box-box). See docs/collision.md.
 #pragma once
 
 #include "physics/collision/shape_geometry.h"
@@ -10,6 +11,8 @@
 
 #include <fcl/narrowphase/collision_request.h>
 #include <fcl/narrowphase/collision_result.h>
+#include <fcl/narrowphase/distance_request.h>
+#include <fcl/narrowphase/distance_result.h>
 
 namespace substep {
 
@@ -33,13 +36,16 @@ struct ContactPatch {
 class Narrowphase {
  public:
   Narrowphase();
-  // Contact points between A and B. B may be a plane or a static triangle mesh; A may not.
+  // Contact points between A and B, penetrating ones and speculative ones separated by at most
+  // `margin` [m]. B may be a plane or a static triangle mesh; A may not.
   void collide(const Shape& shapeA, const CollisionShape& cA, const Pose& poseA, const Shape& shapeB,
-               const CollisionShape& cB, const Pose& poseB, ContactPatch& out);
+               const CollisionShape& cB, const Pose& poseB, double margin, ContactPatch& out);
 
  private:
   fcl::CollisionRequestd request_;
   fcl::CollisionResultd result_;
+  fcl::DistanceRequestd distanceRequest_;
+  fcl::DistanceResultd distanceResult_;
 };
 
 // Reduces a patch to at most four points that keep its area: the deepest, the one furthest from
@@ -47,7 +53,9 @@ class Narrowphase {
 void reducePatch(ContactPatch& patch, int maxPoints = 4);
 
 // Clipping, exposed for tests: points of the incident feature that lie over the reference
-// feature, with the reference on body B when refIsB. `n` points from B to A.
-void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec3& n, ContactPatch& out);
+// feature and within `margin` of it, with the reference on body B when refIsB. `n` points from
+// B to A.
+void clipFeatures(const Feature& ref, const Feature& inc, bool refIsB, const Vec3& n, double margin,
+                  ContactPatch& out);
 
 }  // namespace substep
