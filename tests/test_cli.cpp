@@ -193,3 +193,16 @@ TEST(Cli, DivergingRunStopsWithStatus3) {
   EXPECT_FALSE(j["finite"].get<bool>());
   EXPECT_NE(j["stopped"].get<std::string>().find("light"), std::string::npos);
 }
+
+// Two runs of the same scene in two processes write byte-identical trajectories.
+TEST(Cli, RunsAreReproducibleAcrossProcesses) {
+  const fs::path a = scratch("det-a.csv"), b = scratch("det-b.csv");
+  for (const fs::path& f : {a, b}) {
+    const Outcome r = run("run assets/scenes/pendulum_chain.json --seconds 2 -q --trajectory " + f.string());
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  std::ifstream fa(a), fb(b);
+  const std::string sa((std::istreambuf_iterator<char>(fa)), {}), sb((std::istreambuf_iterator<char>(fb)), {});
+  EXPECT_GT(sa.size(), 1000u);
+  EXPECT_EQ(sa, sb);
+}

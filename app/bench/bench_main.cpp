@@ -104,6 +104,7 @@ struct Run {
   double worst = 0;         // slowest single step [s]
   int stepsDone = 0;
   bool finite = true;
+  std::string problem;      // when not finite: what the World said diverged
   int contacts = 0;         // contact points at the last step
   double moved = 0;         // largest displacement of a dynamic body from its start [m]
   int movedBody = -1;       // which body
@@ -135,6 +136,7 @@ Run runSubstep(const Scene& scene, const SolverSettings& settings, int steps, st
     r.stepsDone = k + 1;
     if (!rep.finite) {
       r.finite = false;
+      r.problem = rep.problem;
       break;
     }
   }
@@ -163,6 +165,7 @@ Run runBullet(const Scene& scene, double dt, int iterations, int steps, std::vec
     r.stepsDone = k + 1;
   }
   r.finite = peer.finite();
+  if (!r.finite) r.problem = "a Bullet body's position is not finite";
   const double n = std::max(1, r.stepsDone);
   for (int k = 0; k < r.stepsDone; ++k) {
     r.total += stepTimes[static_cast<size_t>(k)];
@@ -260,6 +263,7 @@ nlohmann::json runJson(const Run& r, const Model& model) {
           {"worst_step_ms", r.worst * 1e3},
           {"steps_done", r.stepsDone},
           {"finite", r.finite},
+          {"problem", r.problem},
           {"contact_points", r.contacts},
           {"moved_m", r.moved}};
   if (r.movedBody >= 0) {
@@ -417,7 +421,11 @@ int bench(const Options& opt) {
                "wall time of one step() call (includes bookkeeping outside s1-s4). vs Bullet: total / Bullet's total\n"
                "on the same scene. contacts: contact points at the last step. moved: largest distance of any body's\n"
                "centre from where it started, after the last step (the pile is dropped, so there it is the fall).\n";
-  if (!allFinite) std::cout << "WARNING: some run went non-finite (NaN@k: at step k)\n";
+  if (!allFinite) {
+    std::cout << "WARNING: some runs diverged (NaN@k: at step k):\n";
+    for (const Result& r : results)
+      if (!r.median.finite) std::cout << "  " << r.scene << " " << r.c->label << ": " << r.median.problem << "\n";
+  }
 
   if (!opt.json.empty()) {
     nlohmann::json doc;
