@@ -35,8 +35,9 @@ Outcome run(const std::string& args) {
   return r;
 }
 
+// A folder per test: CTest runs the tests in parallel, and some look at what is in theirs.
 fs::path scratch(const std::string& name) {
-  fs::path d = fs::path(SUBSTEP_BINARY_DIR) / "test_cli_out";
+  fs::path d = fs::path(SUBSTEP_BINARY_DIR) / "test_cli_out" / ::testing::UnitTest::GetInstance()->current_test_info()->name();
   fs::create_directories(d);
   return d / name;
 }
