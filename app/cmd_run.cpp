@@ -35,6 +35,14 @@ void writeTrajectoryRows(std::ostream& o, const Model& m, const State& s) {
   }
 }
 
+// Largest distance of a dynamic body from where it started [m].
+double maxDisplacement(const Scene& scene, const State& s) {
+  double worst = 0;
+  for (size_t i = 0; i < scene.model.bodies.size(); ++i)
+    if (!scene.model.bodies[i].isStatic) worst = std::max(worst, (s.bodies[i].x - scene.initial.bodies[i].x).norm());
+  return worst;
+}
+
 }  // namespace
 
 void addRunCommand(CLI::App& app, std::function<int()>& action) {
@@ -70,7 +78,8 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       nlohmann::json series = {{"step", nlohmann::json::array()},   {"time", nlohmann::json::array()},
                                {"kinetic", nlohmann::json::array()}, {"potential", nlohmann::json::array()},
                                {"penetration", nlohmann::json::array()}, {"joint_error", nlohmann::json::array()},
-                               {"contacts", nlohmann::json::array()}, {"iterations", nlohmann::json::array()}};
+                               {"contacts", nlohmann::json::array()}, {"iterations", nlohmann::json::array()},
+                               {"moved", nlohmann::json::array()}};
       double worstPen = 0, worstJoint = 0;
       auto sample = [&](const StepReport* r) {
         const State& s = world.state();
@@ -86,6 +95,7 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
         series["joint_error"].push_back(je);
         series["contacts"].push_back(r ? r->contactPoints : 0);
         series["iterations"].push_back(r ? r->solver.iterations : 0);
+        series["moved"].push_back(maxDisplacement(scene, s));
       };
       if (!opt->quiet)
         std::cout << "scene     " << scene.file << " (" << scene.model.dynamicCount() << " dynamic bodies, "

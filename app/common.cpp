@@ -36,6 +36,9 @@ void SolverOptions::add(CLI::App& cmd) {
   cmd.add_flag("--no-warm-start", noWarmStart, "Do not warm start");
   cmd.add_flag("--block-solve", blockSolve, "Solve unbounded ('stable') constraints as blocks");
   cmd.add_flag("--no-block-solve", noBlockSolve, "Solve every row on its own");
+  cmd.add_flag("--split-impulse", splitImpulse,
+               "Correct contact penetration with pseudo-velocities, apart from the velocity solve");
+  cmd.add_flag("--no-split-impulse", noSplitImpulse, "Correct penetration through the bias, as the report does");
 }
 
 SolverOverrides SolverOptions::overrides() const {
@@ -52,10 +55,14 @@ SolverOverrides SolverOptions::overrides() const {
   o.slop = slop;
   if (warmStart && noWarmStart) throw UsageError("--warm-start and --no-warm-start contradict each other");
   if (blockSolve && noBlockSolve) throw UsageError("--block-solve and --no-block-solve contradict each other");
+  if (splitImpulse && noSplitImpulse)
+    throw UsageError("--split-impulse and --no-split-impulse contradict each other");
   if (warmStart) o.warmStart = true;
   if (noWarmStart) o.warmStart = false;
   if (blockSolve) o.blockSolve = true;
   if (noBlockSolve) o.blockSolve = false;
+  if (splitImpulse) o.splitImpulse = true;
+  if (noSplitImpulse) o.splitImpulse = false;
   return o;
 }
 
@@ -95,6 +102,7 @@ std::string describe(const SolverSettings& s) {
     default: o << " n=" << s.substeps << " m=" << s.iterations << " κ=" << s.kappa << " τ=" << s.tau; break;
   }
   if (s.warmStart) o << " warm-start";
+  if (s.splitImpulse) o << " split-impulse";
   if (s.blockSolve) o << " blocks";
   return o.str();
 }

@@ -30,6 +30,7 @@ struct SolverOptions {
   std::optional<double> dt, omega, tolerance, kappa, tau, slop;
   std::optional<int> substeps, iterations;
   bool warmStart = false, noWarmStart = false, blockSolve = false, noBlockSolve = false;
+  bool splitImpulse = false, noSplitImpulse = false;
 
   void add(CLI::App& cmd);
   SolverOverrides overrides() const;

@@ -263,7 +263,7 @@ Scene Reader::read(const json& root) {
 
 void Reader::readSolver(const Obj& o, SolverOverrides& s) const {
   o.allow({"algorithm", "dt", "substeps", "iterations", "omega", "tolerance", "kappa", "tau", "slop", "warm_start",
-           "block_solve", "preset"});
+           "block_solve", "split_impulse", "preset"});
   if (o.has("algorithm")) {
     const std::string a = o.string("algorithm");
     s.algorithm = parseAlgorithm(a);
@@ -279,6 +279,7 @@ void Reader::readSolver(const Obj& o, SolverOverrides& s) const {
   if (o.has("slop")) s.slop = o.number("slop", kNonNegative);
   if (o.has("warm_start")) s.warmStart = o.boolean("warm_start", false);
   if (o.has("block_solve")) s.blockSolve = o.boolean("block_solve", false);
+  if (o.has("split_impulse")) s.splitImpulse = o.boolean("split_impulse", false);
   if (o.has("preset")) s.preset = o.string("preset");
 }
 

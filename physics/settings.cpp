@@ -54,6 +54,7 @@ SolverOverrides SolverOverrides::merged(const SolverOverrides& later) const {
   take(r.slop, later.slop);
   take(r.warmStart, later.warmStart);
   take(r.blockSolve, later.blockSolve);
+  take(r.splitImpulse, later.splitImpulse);
   take(r.preset, later.preset);
   return r;
 }
@@ -116,6 +117,7 @@ SolverSettings resolve(const SolverOverrides& o) {
   if (o.slop) s.slop = *o.slop;
   if (o.warmStart) s.warmStart = *o.warmStart;
   if (o.blockSolve) s.blockSolve = *o.blockSolve;
+  if (o.splitImpulse) s.splitImpulse = *o.splitImpulse;
 
   if (!(s.dt > 0 && s.dt <= 1)) bad("dt", "expected a time step in (0, 1] s, got " + std::to_string(s.dt));
   if (s.substeps < 1 || s.substeps > 1000) bad("substeps", "expected 1 to 1000, got " + std::to_string(s.substeps));

@@ -23,6 +23,7 @@ struct SolverSettings {
   double kappa = 1.0;            // κ (A3-A5)
   double tau = 0.6;              // τ (A3-A5)
   bool warmStart = false;        // start each step from the previous step's impulses
+  bool splitImpulse = false;     // correct contact penetration apart from the velocity solve
   bool blockSolve = false;       // solve 'stable' (unbounded) constraints as blocks (IV.2.2 item 2)
   double slop = 0.001;           // allowed penetration: the report's hi [m]
   int directMaxRows = 1500;      // A1: largest MLCP it forms densely (rows)
@@ -35,7 +36,7 @@ struct SolverOverrides {
   std::optional<int> substeps;
   std::optional<int> iterations;
   std::optional<double> omega, tolerance, kappa, tau, slop;
-  std::optional<bool> warmStart, blockSolve;
+  std::optional<bool> warmStart, blockSolve, splitImpulse;
   std::optional<std::string> preset;   // Havok's presets, e.g. "4-medium"
 
   // Later values win: scene.merged(commandLine).

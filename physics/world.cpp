@@ -37,6 +37,8 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
     if (!b.isStatic) ctx_.mass[i] = BodyMass{b.invMass, b.invInertia};
   }
   ctx_.poses.resize(nb);
+  ctx_.pseudoV.resize(nb);
+  ctx_.pseudoW.resize(nb);
   reach_.resize(nb);
   ctx_.v.resize(nb);
   ctx_.w.resize(nb);
@@ -45,6 +47,14 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
 }
 
 World::~World() = default;
+
+void World::setSettings(const SolverSettings& settings) {
+  if (settings.algorithm != settings_.algorithm) stepper_ = makeStepper(settings.algorithm);
+  settings_ = settings;
+  const size_t nb = model_.bodies.size();
+  ctx_.subV.resize(nb * static_cast<size_t>(settings.substeps));
+  ctx_.subW.resize(nb * static_cast<size_t>(settings.substeps));
+}
 
 void World::geometry() {
   // How far each body can get in this step, plus half the contact margin: a pair is examined

@@ -55,6 +55,10 @@ class World {
   // after the step or already before it (then without stepping).
   const StepReport& step();
 
+  // Changes the solver between steps, keeping the contact manifolds and their impulses (so warm
+  // starting carries over). The algorithm may change too.
+  void setSettings(const SolverSettings& settings);
+
   const Model& model() const { return model_; }
   const SolverSettings& settings() const { return settings_; }
   const State& state() const { return state_; }

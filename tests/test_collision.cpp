@@ -165,7 +165,8 @@ TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
   ASSERT_EQ(cache.manifolds().size(), 1u);
   uint32_t ids[4];
   for (int i = 0; i < 4; ++i) ids[i] = cache.manifolds()[0].points[i].id;
-  cache.manifolds()[0].points[0].lambda[0] = 1.5;
+  cache.manifolds()[0].points[0].lambda = 1.5;
+  cache.manifolds()[0].frictionLambda[2] = 0.25;
   // A small slide keeps every point; its impulse comes along.
   pose.p.x() += 0.005;
   cache.beginStep();
@@ -178,10 +179,11 @@ TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
         ++kept;
         EXPECT_EQ(m.points[i].age, 1);
         if (k == 0) {
-          EXPECT_EQ(m.points[i].lambda[0], 1.5);
+          EXPECT_EQ(m.points[i].lambda, 1.5);
         }
       }
   EXPECT_EQ(kept, 4);
+  EXPECT_EQ(m.frictionLambda[2], 0.25);
   // A jump of 30 cm: the same corners of the box, but elsewhere on the ground: all points are new.
   pose.p.x() += 0.3;
   cache.beginStep();

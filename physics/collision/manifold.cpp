@@ -53,11 +53,18 @@ void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, doub
       const ManifoldPoint& o = old->points[match];
       p.id = o.id;
       p.age = o.age + 1;
-      for (int k = 0; k < 3; ++k) p.lambda[k] = o.lambda[k];
+      p.lambda = o.lambda;
     } else {
       p.id = nextId_++;
     }
   }
+  // The pair's friction carries over while any of its points does.
+  if (old)
+    for (int k = 0; k < kMaxManifoldPoints; ++k)
+      if (taken[k]) {
+        std::copy(old->frictionLambda, old->frictionLambda + 3, m.frictionLambda);
+        break;
+      }
   current_.push_back(m);
 }
 

@@ -20,7 +20,7 @@ struct ManifoldPoint {
   Vec3 localB = Vec3::Zero();  // σ̌b: the point on B, in B's frame [m]
   Vec3 localN = Vec3::UnitY(); // the normal (from B to A) in B's frame
   double depth = 0;            // penetration when detected [m]
-  double lambda[3] = {0, 0, 0};// normal and two friction impulses of the last step [N s]
+  double lambda = 0;           // its normal impulse of the last step [N s]
   int age = 0;                 // steps this point has persisted
   uint32_t id = 0;             // stable identity while it persists
 };
@@ -31,6 +31,7 @@ struct Manifold {
   double restitution = 0;      // e of the pair
   int count = 0;
   ManifoldPoint points[kMaxManifoldPoints];
+  double frictionLambda[3] = {0, 0, 0};  // the pair's friction impulses of the last step (t1, t2, twist)
 };
 
 // Builds this step's manifolds from narrowphase patches, matching them with last step's.

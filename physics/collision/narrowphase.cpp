@@ -12,6 +12,9 @@ namespace substep {
 
 namespace {
 
+// Below this distance two shapes are touching, not apart [m].
+constexpr double kTouching = 1e-5;
+
 fcl::Transform3d toFcl(const Pose& p) {
   fcl::Transform3d t = fcl::Transform3d::Identity();
   t.linear() = p.q.toRotationMatrix();
@@ -336,7 +339,32 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
     distanceResult_.clear();
     fcl::distance(cA.geometry.get(), tA, cB.geometry.get(), tB, distanceRequest_, distanceResult_);
     const double d = distanceResult_.min_distance;
-    if (!(d > 1e-9) || d > margin) return;
+    if (d > margin) return;
+    if (!(d > kTouching)) {
+      // Exactly touching (boxes stacked by a generator): not colliding for FCL and no direction
+      // from the nearest points. Nudge A towards B by kTouching to get FCL's normal; the points
+      // still come from the true poses.
+      Vec3 u = poseA.p - poseB.p;
+      u = u.norm() > 0 ? Vec3(u.normalized()) : Vec3::UnitY();
+      fcl::Transform3d nudged = tA;
+      nudged.translation() -= kTouching * u;
+      result_.clear();
+      fcl::collide(cA.geometry.get(), nudged, cB.geometry.get(), tB, request_, result_);
+      if (result_.numContacts() == 0) return;
+      size_t deepest = 0;
+      for (size_t i = 1; i < result_.numContacts(); ++i)
+        if (result_.getContact(i).penetration_depth > result_.getContact(deepest).penetration_depth) deepest = i;
+      Vec3 n = -result_.getContact(deepest).normal;
+      if (n.squaredNorm() < 1e-24) return;
+      if (mesh) {
+        const auto& fc = result_.getContact(deepest);
+        againstTriangle(sA, poseA, *sB.mesh, poseB, fc.b2 >= 0 ? fc.b2 : fc.b1, margin, out);
+        reducePatch(out);
+        return;
+      }
+      fromNormal(sA, poseA, sB, poseB, n.normalized(), 0.0, margin, result_.getContact(deepest).pos, out);
+      return;
+    }
     if (mesh) {
       // FCL's nearest points for shape-mesh pairs come in mixed frames: only the triangle is used.
       const intptr_t tri = distanceResult_.b1 >= 0 ? distanceResult_.b1 : distanceResult_.b2;

@@ -100,7 +100,10 @@ void hullInto(const Vec3* pts, int n, const Vec3& d, Feature& f) {
 Feature supportingFeature(const Shape& s, const Pose& pose, const Vec3& dWorld) {
   Feature f;
   const Vec3 d = pose.unrotate(dWorld);  // body frame
-  const double tol = kContactMargin;      // points within this of the support plane belong to it
+  // A face (or a capsule's side line) supports as a whole while it is within kFeatureAngle of
+  // facing d: a loaded box tilts by fractions of a degree and must keep its four corners, not
+  // rock on an edge. Corners lifted beyond the contact margin are dropped by the clipping.
+  const double across = std::sin(kFeatureAngle);
   auto out = [&](const Vec3& local) { f.p[f.count++] = pose.apply(local); };
   switch (s.type) {
     case ShapeType::Sphere: out(s.radius * d); break;
@@ -110,7 +113,7 @@ Feature supportingFeature(const Shape& s, const Pose& pose, const Vec3& dWorld) 
       bool free[3];
       for (int i = 0; i < 3; ++i) {
         corner[i] = d[i] >= 0 ? h[i] : -h[i];
-        free[i] = 2.0 * h[i] * std::abs(d[i]) <= tol;
+        free[i] = std::abs(d[i]) <= across;
       }
       // Enumerate the corners reachable by flipping the free axes (1, 2 or 4 of them).
       int axes[3], na = 0;
@@ -145,7 +148,7 @@ Feature supportingFeature(const Shape& s, const Pose& pose, const Vec3& dWorld) 
       const double rn = radial.norm();
       const bool capsule = s.type == ShapeType::Capsule;
       if (capsule) {
-        if (2.0 * s.halfHeight * std::abs(ay) <= tol) {  // lying across d: its side line
+        if (std::abs(ay) <= across) {  // lying across d: its side line
           out(Vec3(0, s.halfHeight, 0) + s.radius * d);
           out(Vec3(0, -s.halfHeight, 0) + s.radius * d);
         } else {
@@ -154,14 +157,14 @@ Feature supportingFeature(const Shape& s, const Pose& pose, const Vec3& dWorld) 
         break;
       }
       const double y = ay >= 0 ? s.halfHeight : -s.halfHeight;
-      if (2.0 * s.radius * rn <= tol) {  // cap facing d: the rim as an octagon
+      if (rn <= across) {  // cap facing d: the rim as an octagon
         for (int k = 0; k < 8; ++k) {
           const double a = k * M_PI / 4;
           out(Vec3(s.radius * std::cos(a), y, s.radius * std::sin(a)));
         }
       } else {
         const Vec3 r = radial / rn * s.radius;
-        if (2.0 * s.halfHeight * std::abs(ay) <= tol) {  // side line
+        if (std::abs(ay) <= across) {  // side line
           out(Vec3(r.x(), s.halfHeight, r.z()));
           out(Vec3(r.x(), -s.halfHeight, r.z()));
         } else {
@@ -173,6 +176,9 @@ Feature supportingFeature(const Shape& s, const Pose& pose, const Vec3& dWorld) 
     case ShapeType::ConvexMesh: {
       double best = -1e300;
       for (const Vec3& v : s.mesh->vertices) best = std::max(best, v.dot(d));
+      // A mesh has no face list here: vertices within a small angle of the support plane, over
+      // the mesh's size, make the face (kFeatureAngle would merge neighbouring faces).
+      const double tol = std::max(kContactMargin, 2.0 * s.boundingRadius() * std::sin(kMeshFeatureAngle));
       Vec3 near[64];
       int n = 0;
       for (const Vec3& v : s.mesh->vertices)

@@ -1,24 +1,12 @@
 #include "physics/constraints/constraint_set.h"
 
-#include "physics/constraints/ball.h"
+#include "physics/constraints/joints.h"
 
 #include <Eigen/LU>
 #include <algorithm>
 #include <stdexcept>
 
 namespace substep {
-
-namespace {
-
-int rowCount(const Joint& j) {
-  switch (j.type) {
-    case JointType::Ball: return 3;
-    default: break;
-  }
-  throw std::invalid_argument(std::string("joint type ") + jointTypeName(j.type) + " is not supported yet");
-}
-
-}  // namespace
 
 void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manifolds, const std::vector<Pose>& poses,
                           const std::vector<BodyMass>& mass, const SolverSettings& settings, double h,
@@ -28,6 +16,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   block_ = settings.blockSolve;
   rows.clear();
   units.clear();
+  blocks.clear();
   contacts.clear();
   joints.clear();
 
@@ -36,32 +25,49 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     int total = 0;
     for (const Joint& j : model.joints) {
       jointLambdaFirst_.push_back(total);
-      total += rowCount(j);
+      total += jointLayout(j).rows;
     }
     jointLambda_.assign(static_cast<size_t>(total), 0.0);
   }
 
   for (size_t k = 0; k < model.joints.size(); ++k) {
+    const Joint& j = model.joints[k];
+    const JointLayout layout = jointLayout(j);
     JointRef ref;
     ref.joint = static_cast<int>(k);
     ref.first = static_cast<int>(rows.size());
-    ref.count = rowCount(model.joints[k]);
+    ref.count = layout.rows;
     rows.resize(rows.size() + static_cast<size_t>(ref.count));
     formulateJoint(ref, poses, h, false);
     for (int i = 0; i < ref.count; ++i)
       rows[static_cast<size_t>(ref.first + i)].lambda =
           settings.warmStart ? jointLambda_[static_cast<size_t>(jointLambdaFirst_[k] + i)] : 0.0;
     joints.push_back(ref);
-    // Unbounded rows form one block when block solving, else one unit each.
-    if (block_) {
-      units.push_back(SolveUnit{ref.first, ref.count, Mat3::Zero()});
-    } else {
-      for (int i = 0; i < ref.count; ++i) units.push_back(SolveUnit{ref.first + i, 1, Mat3::Zero()});
+    // A stable part is one block when block solving, else one unit per row; bounded rows
+    // (limits, motors) are always on their own.
+    for (int p = 0; p < layout.parts; ++p) {
+      const JointPart& part = layout.part[p];
+      if (part.stable && block_ && part.size > 1) {
+        units.push_back(SolveUnit{ref.first + part.offset, part.size, SolveUnit::Stable, -1});
+      } else {
+        for (int i = 0; i < part.size; ++i) units.push_back(SolveUnit{ref.first + part.offset + i, 1});
+      }
     }
   }
 
+  // Per manifold: its points' normal rows, then its three friction rows.
   contactFirstRow = static_cast<int>(rows.size());
+  frictions.clear();
   for (const Manifold& m : manifolds) {
+    const Pose& A = poses[static_cast<size_t>(m.a)];
+    const Pose& B = poses[static_cast<size_t>(m.b)];
+    FrictionDef f;
+    f.a = m.a;
+    f.b = m.b;
+    f.mu = m.friction;
+    f.firstNormal = static_cast<int>(rows.size());
+    f.normalCount = m.count;
+    Vec3 normalSum = Vec3::Zero();
     for (int k = 0; k < m.count; ++k) {
       const ManifoldPoint& p = m.points[k];
       ContactDef c;
@@ -70,63 +76,87 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       c.localA = p.localA;
       c.localB = p.localB;
       c.localN = p.localN;
-      c.mu = m.friction;
-      c.restitution = m.restitution;
+      c.row = static_cast<int>(rows.size());
       contacts.push_back(c);
-      const int first = static_cast<int>(rows.size());
-      rows.resize(rows.size() + 3);
-      formulateContact(c, poses[static_cast<size_t>(c.a)], poses[static_cast<size_t>(c.b)], h, slop_, &rows[static_cast<size_t>(first)], false);
-      for (int i = 0; i < 3; ++i) rows[static_cast<size_t>(first + i)].lambda = settings.warmStart ? p.lambda[i] : 0.0;
-      rows[static_cast<size_t>(first + 1)].normalRow = first;
-      rows[static_cast<size_t>(first + 2)].normalRow = first;
+      rows.emplace_back();
+      formulateContact(c, A, B, h, slop_, rows.back(), false);
+      rows.back().lambda = settings.warmStart ? p.lambda : 0.0;
+      f.localA += p.localA / m.count;
+      f.localB += p.localB / m.count;
+      normalSum += p.localN;
     }
+    f.localN = normalSum.normalized();
+    for (int k = 0; k < m.count; ++k) f.radius += (m.points[k].localA - f.localA).norm() / m.count;
+    f.row = static_cast<int>(rows.size());
+    rows.resize(rows.size() + 3);
+    formulateFriction(f, A, B, &rows[static_cast<size_t>(f.row)], false);
+    for (int k = 0; k < 3; ++k) rows[static_cast<size_t>(f.row + k)].lambda = settings.warmStart ? m.frictionLambda[k] : 0.0;
+    frictions.push_back(f);
   }
   // Solve order: joints, then every contact's normal row, then the friction rows. With friction
-  // interleaved, Gauss-Seidel spends its sweeps on friction impulses that fight each other under
-  // a box (four points, eight tangent rows, six degrees of freedom) and a 5-box stack under A2
-  // at 10 iterations falls over; normals first hold it (tests/test_stacking.cpp).
-  const int nContacts = static_cast<int>(contacts.size());
-  for (int k = 0; k < nContacts; ++k) units.push_back(SolveUnit{contactFirstRow + 3 * k, 1, Mat3::Zero()});
-  for (int k = 0; k < nContacts; ++k)
-    for (int i = 1; i < 3; ++i) units.push_back(SolveUnit{contactFirstRow + 3 * k + i, 1, Mat3::Zero()});
+  // interleaved, Gauss-Seidel spends its sweeps on friction before the normal impulses that
+  // bound it exist: a 5-box stack under A2 at 10 iterations falls over; normals first hold it.
+  // With block solving, a manifold's normal rows are one contact block: Gauss-Seidel row by row
+  // over four coplanar points overshoots in rotation, and with one sweep per sub-step a pyramid
+  // rocks itself apart (docs/algorithms.md).
+  auto normalUnits = [&] {
+    for (const FrictionDef& f : frictions) {
+      if (block_ && f.normalCount > 1) {
+        units.push_back(SolveUnit{f.firstNormal, f.normalCount, SolveUnit::Contact, -1});
+      } else {
+        for (int k = 0; k < f.normalCount; ++k) units.push_back(SolveUnit{f.firstNormal + k, 1});
+      }
+    }
+  };
+  auto frictionUnits = [&] {
+    for (const FrictionDef& f : frictions)
+      for (int k = 0; k < 3; ++k) units.push_back(SolveUnit{f.row + k, 1});
+  };
+  if (settings.warmStart) {
+    frictionUnits();
+    normalUnits();
+  } else {
+    normalUnits();
+    frictionUnits();
+  }
   finish(0, static_cast<int>(rows.size()), mass, applyScale);
 }
 
 void ConstraintSet::formulateJoint(const JointRef& ref, const std::vector<Pose>& poses, double h, bool jacobianOnly) {
   const Joint& j = model_->joints[static_cast<size_t>(ref.joint)];
-  const Pose& A = poses[static_cast<size_t>(j.bodyA)];
-  const Pose& B = poses[static_cast<size_t>(j.bodyB)];
-  Row* r = &rows[static_cast<size_t>(ref.first)];
-  switch (j.type) {
-    case JointType::Ball: formulateBall(j, A, B, h, r, jacobianOnly); break;
-    default: throw std::invalid_argument("unsupported joint type");
-  }
+  substep::formulateJoint(j, poses[static_cast<size_t>(j.bodyA)], poses[static_cast<size_t>(j.bodyB)], h,
+                          &rows[static_cast<size_t>(ref.first)], jacobianOnly);
 }
 
 void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale) {
   for (int i = firstRow; i < lastRow; ++i) {
     Row& r = rows[static_cast<size_t>(i)];
-    finishRow(r, mass[static_cast<size_t>(r.a)], mass[static_cast<size_t>(r.b)], applyScale);
+    // A motor is solved exactly under every algorithm: κ does not scale it (docs/algorithms.md).
+    finishRow(r, mass[static_cast<size_t>(r.a)], mass[static_cast<size_t>(r.b)], r.velocityTarget ? 1.0 : applyScale);
   }
   for (SolveUnit& u : units) {
-    if (u.size == 1 || u.first < firstRow || u.first >= lastRow) continue;
+    if (u.kind == SolveUnit::Single || u.first < firstRow || u.first >= lastRow) continue;
+    if (u.block < 0) {
+      u.block = static_cast<int>(blocks.size());
+      blocks.emplace_back();
+    }
+    BlockData& d = blocks[static_cast<size_t>(u.block)];
     // K = block of Γ = J̌ M̌⁻¹ J̌ᵀ (unscaled, as the effective mass of single rows).
-    Mat3 K = Mat3::Identity();
+    d.K.setZero();
     for (int i = 0; i < u.size; ++i)
       for (int k = 0; k < u.size; ++k)
-        K(i, k) = gammaEntry(rows[static_cast<size_t>(u.first + i)], rows[static_cast<size_t>(u.first + k)], mass.data());
-    Mat3 inv = Mat3::Zero();
-    if (u.size == 3) {
-      bool ok = false;
-      double det = 0;
-      K.computeInverseAndDetWithCheck(inv, det, ok, 1e-300);
-      if (!ok) inv.setZero();
-    } else {
-      const Eigen::Matrix2d K2 = K.topLeftCorner<2, 2>();
-      const double det = K2.determinant();
-      if (det != 0) inv.topLeftCorner<2, 2>() = K2.inverse();
+        d.K(i, k) = gammaEntry(rows[static_cast<size_t>(u.first + i)], rows[static_cast<size_t>(u.first + k)], mass.data());
+    Eigen::Matrix4d K = d.K;
+    for (int i = u.size; i < 4; ++i) K(i, i) = 1;  // pad to an invertible 4x4
+    if (u.kind == SolveUnit::Contact) {
+      // Four coplanar points make K singular (rank 3): regularise slightly, so the full set's
+      // answer is the even, minimum-norm one.
+      for (int i = 0; i < u.size; ++i) K(i, i) *= 1 + 1e-4;
     }
-    u.invK = inv;
+    bool ok = false;
+    double det = 0;
+    K.computeInverseAndDetWithCheck(d.invK, det, ok, 1e-300);
+    if (!ok) d.invK.setZero();
   }
 }
 
@@ -135,11 +165,14 @@ void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vecto
   const bool jacobianOnly = what == Refresh::JointJacobians;
   for (const JointRef& ref : joints) formulateJoint(ref, poses, h, jacobianOnly);
   if (what == Refresh::All) {
-    for (size_t k = 0; k < contacts.size(); ++k) {
-      const ContactDef& c = contacts[k];
-      formulateContact(c, poses[static_cast<size_t>(c.a)], poses[static_cast<size_t>(c.b)], h, slop_,
-                       &rows[static_cast<size_t>(contactFirstRow) + 3 * k], false);
+    for (const ContactDef& c : contacts) {
+      Row& r = rows[static_cast<size_t>(c.row)];
+      formulateContact(c, poses[static_cast<size_t>(c.a)], poses[static_cast<size_t>(c.b)], h, slop_, r, false);
+      r.bias -= r.split;  // the step's split-off position error stays with the position solve
     }
+    for (const FrictionDef& f : frictions)
+      formulateFriction(f, poses[static_cast<size_t>(f.a)], poses[static_cast<size_t>(f.b)],
+                        &rows[static_cast<size_t>(f.row)], false);
     finish(0, static_cast<int>(rows.size()), mass, applyScale);
   } else {
     finish(0, contactFirstRow, mass, applyScale);
@@ -151,10 +184,12 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
     for (int i = 0; i < ref.count; ++i)
       jointLambda_[static_cast<size_t>(jointLambdaFirst_[static_cast<size_t>(ref.joint)] + i)] =
           rows[static_cast<size_t>(ref.first + i)].lambda;
-  size_t k = static_cast<size_t>(contactFirstRow);
-  for (Manifold& m : manifolds)
-    for (int p = 0; p < m.count; ++p)
-      for (int i = 0; i < 3; ++i) m.points[p].lambda[i] = rows[k++].lambda;
+  size_t c = 0, f = 0;
+  for (Manifold& m : manifolds) {
+    for (int p = 0; p < m.count; ++p) m.points[p].lambda = rows[static_cast<size_t>(contacts[c++].row)].lambda;
+    for (int k = 0; k < 3; ++k) m.frictionLambda[k] = rows[static_cast<size_t>(frictions[f].row + k)].lambda;
+    ++f;
+  }
 }
 
 double ConstraintSet::maxPenetration(const std::vector<Pose>& poses) const {
@@ -171,7 +206,7 @@ double ConstraintSet::maxJointError(const std::vector<Pose>& poses) const {
     const Joint& j = model_->joints[static_cast<size_t>(ref.joint)];
     const Pose& A = poses[static_cast<size_t>(j.bodyA)];
     const Pose& B = poses[static_cast<size_t>(j.bodyB)];
-    worst = std::max(worst, ballError(j, A, B).norm());
+    worst = std::max(worst, jointError(j, A, B));
   }
   return worst;
 }

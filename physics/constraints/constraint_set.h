@@ -38,9 +38,11 @@ class ConstraintSet {
 
   std::vector<Row> rows;
   std::vector<SolveUnit> units;
-  std::vector<ContactDef> contacts;  // contact k owns rows contactFirstRow + 3k .. + 3k + 2
+  std::vector<BlockData> blocks;  // of the stable and contact blocks
+  std::vector<ContactDef> contacts;    // one normal row per contact point
+  std::vector<FrictionDef> frictions;  // three friction rows per manifold
   std::vector<JointRef> joints;
-  int contactFirstRow = 0;
+  int contactFirstRow = 0;             // rows from here on are contacts and friction
 
   // Largest penetration of any contact point and largest joint error at `poses` [m].
   double maxPenetration(const std::vector<Pose>& poses) const;

@@ -8,29 +8,38 @@ double contactGap(const ContactDef& c, const Pose& A, const Pose& B) {
   return (A.apply(c.localA) - B.apply(c.localB)).dot(B.rotate(c.localN));
 }
 
-void formulateContact(const ContactDef& c, const Pose& A, const Pose& B, double h, double slop, Row* rows,
+void formulateContact(const ContactDef& c, const Pose& A, const Pose& B, double h, double slop, Row& row,
                       bool jacobianOnly) {
   const Vec3 pa = A.apply(c.localA), pb = B.apply(c.localB);
   const Vec3 n = B.rotate(c.localN);
-  // Arms to the midpoint of pa and pb: for the normal row the same J as arms to pa and pb (the
-  // difference is along n), and friction impulses act at one point, so they conserve angular
-  // momentum exactly.
+  // Arms to the midpoint of pa and pb: the same J as arms to pa and pb, since the two differ
+  // along n and (ω × s n)·n = 0.
   const Vec3 m = 0.5 * (pa + pb);
-  const Vec3 rA = m - A.p, rB = m - B.p;
+  axisRow(row, c.a, c.b, A, B, m - A.p, m - B.p, n);
+  if (jacobianOnly) return;
+  row.bias = -((pa - pb).dot(n) + slop) / h;
+  row.lo = 0;
+  row.hi = kInfinity;
+}
+
+void formulateFriction(const FrictionDef& f, const Pose& A, const Pose& B, Row* rows, bool jacobianOnly) {
+  const Vec3 n = B.rotate(f.localN);
+  // Both bodies' impulses act at one point, so friction conserves angular momentum exactly.
+  const Vec3 c = 0.5 * (A.apply(f.localA) + B.apply(f.localB));
   Vec3 t1, t2;
   tangentBasis(n, t1, t2);
-  axisRow(rows[0], c.a, c.b, A, B, rA, rB, n);
-  axisRow(rows[1], c.a, c.b, A, B, rA, rB, t1);
-  axisRow(rows[2], c.a, c.b, A, B, rA, rB, t2);
+  axisRow(rows[0], f.a, f.b, A, B, c - A.p, c - B.p, t1);
+  axisRow(rows[1], f.a, f.b, A, B, c - A.p, c - B.p, t2);
+  angleRow(rows[2], f.a, f.b, A, B, n);
+  for (int k = 0; k < 3; ++k) rows[k].velocityLevel = true;
   if (jacobianOnly) return;
-  const double C = (pa - pb).dot(n) + slop;
-  rows[0].bias = -C / h;
-  rows[0].lo = 0;
-  rows[0].hi = kInfinity;
-  for (int k = 1; k < 3; ++k) {
+  for (int k = 0; k < 3; ++k) {
+    const double mu = k < 2 ? f.mu : f.mu * f.radius;
     rows[k].bias = 0;
-    rows[k].lo = -c.mu;
-    rows[k].hi = c.mu;
+    rows[k].lo = -mu;
+    rows[k].hi = mu;
+    rows[k].normalRow = f.firstNormal;
+    rows[k].normalCount = f.normalCount;
   }
 }
 

@@ -1,13 +1,20 @@
-// Contact with Coulomb friction, the report's IV.3.1.1.
+// Contact: a normal row per contact point, as the report's IV.3.1.1 has it, and friction per
+// manifold.
 //
-// Points a and b fixed on bodies A and B (arms σa, σb from the centres of mass), an axis n fixed
-// on B (from B towards A) and the allowed penetration hi (the 'slop'):
+// Normal. Points a and b fixed on bodies A and B (arms σa, σb from the centres of mass), an
+// axis n fixed on B (from B towards A) and the allowed penetration hi (the 'slop'):
 //   C    = (pa - pb)·n + hi >= 0
 //   Ċ    = (ṗa - ṗb)·n = n·vA + (σa×n)·ωA - n·vB - (σb×n)·ωB
 //   J    = (n, σa×n, -n, -σb×n)                     local: rotational parts R⁻¹(σ×n)
 //   β    = (-1/h) [(pa - pb)·n + hi]                 λn >= 0
-// Friction: two rows along tangents t1, t2 of n, β = 0, |λt| <= μ λn (a box, not a cone).
-// All three rows take their arms to the midpoint of pa and pb (see contact.cpp).
+//
+// Friction (the report leaves it open). Per manifold, at the centroid c of its points: two
+// rows on tangents t1, t2 of n and one on n itself (twist), β = 0,
+//   |λt| <= μ Σλn,   |λtwist| <= μ r Σλn          (r: the points' mean distance from c)
+// the way Havok and PhysX apply friction to a contact patch. Per-point friction gives a box on
+// the ground eight tangent rows for three tangential degrees of freedom; Gauss-Seidel then winds
+// up self-cancelling friction impulses that warm starting keeps and grows until the box walks
+// (docs/algorithms.md).
 #pragma once
 
 #include "physics/constraints/row.h"
@@ -20,16 +27,28 @@ struct ContactDef {
   Vec3 localA = Vec3::Zero();  // σ̌a [m]
   Vec3 localB = Vec3::Zero();  // σ̌b [m]
   Vec3 localN = Vec3::UnitY(); // n in B's frame
+  int row = 0;                 // its normal row
+};
+
+struct FrictionDef {
+  int a = 0, b = 0;
+  Vec3 localA = Vec3::Zero();  // the centroid of the manifold's points on A, in A's frame [m]
+  Vec3 localB = Vec3::Zero();  // ... on B, in B's frame [m]
+  Vec3 localN = Vec3::UnitY(); // n in B's frame
   double mu = 0;               // friction coefficient
-  double restitution = 0;
+  double radius = 0;           // mean distance of the points from the centroid [m]
+  int row = 0;                 // its three rows: t1, t2, twist
+  int firstNormal = 0, normalCount = 0;  // the manifold's normal rows (contiguous)
 };
 
 // (pa - pb)·n at the given poses: negative when penetrating [m].
 double contactGap(const ContactDef& c, const Pose& A, const Pose& B);
 
-// Fills rows[0] (normal) and rows[1], rows[2] (friction) at poses A, B for time step h.
-// jacobianOnly keeps the rows' biases (A4/A5 update them by the report's rule instead).
-void formulateContact(const ContactDef& c, const Pose& A, const Pose& B, double h, double slop, Row* rows,
+// The normal row at poses A, B for time step h. jacobianOnly keeps the bias (A4/A5 update it
+// by the report's rule instead).
+void formulateContact(const ContactDef& c, const Pose& A, const Pose& B, double h, double slop, Row& row,
                       bool jacobianOnly);
+// The three friction rows of a manifold.
+void formulateFriction(const FrictionDef& f, const Pose& A, const Pose& B, Row* rows, bool jacobianOnly);
 
 }  // namespace substep

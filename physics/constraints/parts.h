@@ -32,4 +32,28 @@ inline void angleRow(Row& r, int a, int b, const Pose& A, const Pose& B, const V
   r.angB = -B.unrotate(u);
 }
 
+// An angular inequality C >= 0 whose rate is Ċ = u·(ωA - ωB): a joint limit. While C > 0 the
+// bias -C/h lets the bodies close the remaining angle in this step and no further.
+inline void angleLimitRow(Row& r, int a, int b, const Pose& A, const Pose& B, const Vec3& u, double C, double h,
+                          bool jacobianOnly) {
+  angleRow(r, a, b, A, B, u);
+  if (jacobianOnly) return;
+  r.bias = -C / h;
+  r.lo = 0;
+  r.hi = kInfinity;
+}
+
+// A motor: u·(ωA - ωB) driven to `speed`, with the impulse of one step bounded by maxTorque h
+// (unbounded for maxTorque 0). Its bias is a velocity, not a position correction (IV.3.1.4).
+inline void angleMotorRow(Row& r, int a, int b, const Pose& A, const Pose& B, const Vec3& u, double speed,
+                          double maxTorque, double h, bool jacobianOnly) {
+  angleRow(r, a, b, A, B, u);
+  r.velocityLevel = true;
+  r.velocityTarget = true;
+  if (jacobianOnly) return;
+  r.bias = speed;
+  r.lo = maxTorque > 0 ? -maxTorque * h : -kInfinity;
+  r.hi = maxTorque > 0 ? maxTorque * h : kInfinity;
+}
+
 }  // namespace substep

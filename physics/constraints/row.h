@@ -26,19 +26,39 @@ struct Row {
   Vec3 mLinB = Vec3::Zero(), mAngB = Vec3::Zero();     // M̌⁻¹J̌ᵀ on B
   double effMass = 0;                                  // 1 / (J̌ M̌⁻¹ J̌ᵀ)
   double bias = 0;                                     // β [m/s or rad/s]
-  double lo = -kInfinity, hi = kInfinity;              // bounds of λ; friction rows: ±μ, times λ of normalRow
-  int normalRow = -1;                                  // friction rows: the row whose λ bounds theirs
-  bool velocityTarget = false;                         // motor: β is a target velocity (IV.3.1.4)
+  double lo = -kInfinity, hi = kInfinity;              // bounds of λ; friction rows: ±μ, times Σλ of their normals
+  int normalRow = -1;                                  // friction rows: the first normal row of their manifold
+  int normalCount = 0;                                 // ... and how many (contiguous) rows bound them
+  bool velocityLevel = false;                          // friction, motors: no position C behind β, so the
+                                                       // bias update rule (proc4:16) does not apply
+  bool velocityTarget = false;                         // motor: β is a target velocity, solved with κ = τ = 1
+  double split = 0;                                    // split impulse: the part of β moved to the position solve
   double lambda = 0;                                   // accumulated impulse [N s or N m s]
 };
 
-// Rows solved together. size 1: a single row with bounds. size 2 or 3: an unbounded 'stable'
-// block, solved by inverting its block of Γ = J̌M̌⁻¹J̌ᵀ (the report's IV.2.2 item 2).
+// Rows solved together: the report's "block constraint x" of proc3:10. A single row with its
+// bounds; an unbounded 'stable' block (2 or 3 rows), solved by inverting its block of
+// Γ = J̌M̌⁻¹J̌ᵀ (IV.2.2 item 2); or a contact block, the normal rows of one manifold (up to 4),
+// solved as the small MLCP it is (λ >= 0).
 struct SolveUnit {
+  enum Kind : unsigned char { Single, Stable, Contact };
   int first = 0;
   int size = 1;
-  Mat3 invK = Mat3::Zero();
+  Kind kind = Single;
+  int block = -1;  // its BlockData
 };
+
+struct BlockData {
+  Eigen::Matrix4d K = Eigen::Matrix4d::Zero();     // the block of Γ (unscaled M̌⁻¹)
+  Eigen::Matrix4d invK = Eigen::Matrix4d::Zero();  // its inverse (contact blocks: of K regularised)
+};
+
+// Σλ of a friction row's normal rows: what its bounds scale with.
+inline double normalImpulse(const Row& r, const Row* rows) {
+  double s = 0;
+  for (int k = 0; k < r.normalCount; ++k) s += rows[r.normalRow + k].lambda;
+  return s;
+}
 
 // J̌ v̌ of a row for velocities v (world linear) and w (body-frame angular).
 inline double rowVelocity(const Row& r, const Vec3* v, const Vec3* w) {

@@ -16,6 +16,7 @@ class PgsStepper final : public Stepper {
  public:
   void stepVelocities(StepContext& c) override {
     ConstraintSet& cs = *c.constraints;
+    splitPositionErrors(c);
     addExternal(c, c.h());
     if (c.settings->warmStart) applyRowImpulses(cs, c.v, c.w);
     const double omega = c.settings->omega;
@@ -27,6 +28,7 @@ class PgsStepper final : public Stepper {
       c.stats.iterations = it;
       if (c.stats.residual <= c.settings->tolerance) break;
     }
+    solvePositionErrors(c, c.stats.iterations, 1.0);
   }
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesEssential(c); }

@@ -6,14 +6,19 @@ namespace substep {
 
 std::unique_ptr<Stepper> makeDirectStepper();
 std::unique_ptr<Stepper> makePgsStepper();
+std::unique_ptr<Stepper> makeHavokConceptualStepper();
+std::unique_ptr<Stepper> makeHavokApproximativeStepper();
+std::unique_ptr<Stepper> makeHavokActualStepper();
 
 std::unique_ptr<Stepper> makeStepper(Algorithm a) {
   switch (a) {
     case Algorithm::A1: return makeDirectStepper();
     case Algorithm::A2: return makePgsStepper();
-    default: break;
+    case Algorithm::A3: return makeHavokConceptualStepper();
+    case Algorithm::A4: return makeHavokApproximativeStepper();
+    case Algorithm::A5: return makeHavokActualStepper();
   }
-  throw std::invalid_argument(std::string("algorithm ") + algorithmName(a) + " is not implemented yet");
+  throw std::invalid_argument("unknown algorithm");
 }
 
 }  // namespace substep

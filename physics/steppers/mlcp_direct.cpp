@@ -15,22 +15,26 @@ namespace ode = dart::external::ode;
 
 namespace {
 
-// Bounds of row i given the current λ (friction rows scale by their normal's λ).
+// Σλ of the normal rows that bound friction row i.
+double normalSum(const DenseMLCP& p, const std::vector<double>& x, int i) {
+  double s = 0;
+  for (int k = 0; k < p.fcount[static_cast<size_t>(i)]; ++k) s += x[static_cast<size_t>(p.findex[static_cast<size_t>(i)] + k)];
+  return std::max(0.0, s);
+}
+
+// Bounds of row i given the current λ (friction rows scale by their normals' Σλ).
 void bounds(const DenseMLCP& p, const std::vector<double>& x, int i, double& lo, double& hi) {
   lo = p.lo[static_cast<size_t>(i)];
   hi = p.hi[static_cast<size_t>(i)];
-  const int f = p.findex[static_cast<size_t>(i)];
-  if (f >= 0) {
-    const double ln = std::max(0.0, x[static_cast<size_t>(f)]);
-    hi = std::abs(hi) * ln;
+  if (p.findex[static_cast<size_t>(i)] >= 0) {
+    hi = std::abs(hi) * normalSum(p, x, i);
     lo = -hi;
   }
 }
 
-// One Dantzig solve. With useFindex the solver sets friction bounds itself, else they are fixed
-// at ±μ times `normals`.
-bool dantzig(const DenseMLCP& p, double cfm, bool useFindex, const std::vector<double>& normals,
-             std::vector<double>& x) {
+// One Dantzig solve with the friction bounds fixed at ±μ Σ of `normals`' λ. ODE's own friction
+// index takes one normal per friction row, and a manifold's friction is bounded by several.
+bool dantzig(const DenseMLCP& p, double cfm, const std::vector<double>& normals, std::vector<double>& x) {
   const int n = p.n;
   const int stride = dPAD(n);
   std::vector<double> A(static_cast<size_t>(n) * static_cast<size_t>(stride), 0.0);
@@ -45,13 +49,8 @@ bool dantzig(const DenseMLCP& p, double cfm, bool useFindex, const std::vector<d
   std::vector<int> findex(static_cast<size_t>(n), -1);
   for (int i = 0; i < n; ++i) {
     const size_t s = static_cast<size_t>(i);
-    const int f = p.findex[s];
-    if (f >= 0 && useFindex) {
-      findex[s] = f;
-      lo[s] = -std::abs(p.hi[s]);
-      hi[s] = std::abs(p.hi[s]);
-    } else if (f >= 0) {
-      hi[s] = std::abs(p.hi[s]) * std::max(0.0, normals[static_cast<size_t>(f)]);
+    if (p.findex[s] >= 0) {
+      hi[s] = std::abs(p.hi[s]) * normalSum(p, normals, i);
       lo[s] = -hi[s];
     } else {
       lo[s] = std::isinf(p.lo[s]) ? -dInfinity : p.lo[s];
@@ -77,6 +76,7 @@ void assembleMLCP(const std::vector<Row>& rows, const std::vector<BodyMass>& mas
   p.lo.resize(N);
   p.hi.resize(N);
   p.findex.resize(N);
+  p.fcount.resize(N);
   // Rows touching each body, so Γ is filled only where rows share a body.
   std::vector<std::vector<int>> rowsOf(mass.size());
   for (int i = 0; i < n; ++i) {
@@ -100,6 +100,7 @@ void assembleMLCP(const std::vector<Row>& rows, const std::vector<BodyMass>& mas
     p.lo[static_cast<size_t>(i)] = r.lo;
     p.hi[static_cast<size_t>(i)] = r.hi;
     p.findex[static_cast<size_t>(i)] = r.normalRow;
+    p.fcount[static_cast<size_t>(i)] = r.normalCount;
   }
 }
 
@@ -219,12 +220,15 @@ bool lemkeSolve(const DenseMLCP& p, std::vector<double>& x) {
         M(v + 3, v + 1) = -1;
         const int f = p.findex[s];
         if (f >= 0) {
-          const int ln = local[static_cast<size_t>(f)];
-          if (ln < 0) return false;
           const double mu = std::abs(p.hi[s]);
-          M.row(v + 2) += mu * P.row(ln);
-          M.row(v + 3) += mu * P.row(ln);
-          q[v + 2] = q[v + 3] = mu * lam0[ln];
+          for (int k = 0; k < p.fcount[s]; ++k) {
+            const int ln = local[static_cast<size_t>(f + k)];
+            if (ln < 0) return false;
+            M.row(v + 2) += mu * P.row(ln);
+            M.row(v + 3) += mu * P.row(ln);
+            q[v + 2] += mu * lam0[ln];
+            q[v + 3] += mu * lam0[ln];
+          }
         } else {
           q[v + 2] = p.hi[s];
           q[v + 3] = -p.lo[s];
@@ -268,11 +272,17 @@ void polish(const DenseMLCP& p, std::vector<double>& x) {
       const double xi = x[s];
       const int f = p.findex[s];
       if (xi <= lo + tol && !std::isinf(lo)) {
-        S(i, i) = 1;
-        if (f >= 0) S(i, f) = std::abs(p.hi[s]); else r[i] = lo;   // λ = -μλn or lo
+        S(i, i) = 1;  // λ = -μΣλn or lo
+        if (f >= 0)
+          for (int k = 0; k < p.fcount[s]; ++k) S(i, f + k) = std::abs(p.hi[s]);
+        else
+          r[i] = lo;
       } else if (xi >= hi - tol && !std::isinf(hi)) {
-        S(i, i) = 1;
-        if (f >= 0) S(i, f) = -std::abs(p.hi[s]); else r[i] = hi;  // λ = μλn or hi
+        S(i, i) = 1;  // λ = μΣλn or hi
+        if (f >= 0)
+          for (int k = 0; k < p.fcount[s]; ++k) S(i, f + k) = -std::abs(p.hi[s]);
+        else
+          r[i] = hi;
       } else {
         for (int k = 0; k < n; ++k) S(i, k) = p.A[static_cast<size_t>(i * n + k)];
         r[i] = p.b[s];
@@ -321,10 +331,14 @@ DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& x, double cfm)
     }
     return res.residual <= kDirectTolerance;
   };
-  // 1. ODE's Dantzig: exact for fixed bounds; its friction index fixes a friction row's bounds
-  //    from its normal's λ when it reaches the row, and later pivots can still move that λ.
-  std::vector<double> y;
-  if (dantzig(p, cfm, true, {}, y) && consider(y, 1)) return res;
+  // 1. ODE's Dantzig, exact for fixed bounds: friction first frictionless, then bounded by the
+  //    normals of the previous solve, a few rounds while the normals settle.
+  std::vector<double> y, normals(static_cast<size_t>(p.n), 0.0);
+  for (int round = 0; round < 4; ++round) {
+    if (!dantzig(p, cfm, normals, y)) break;
+    normals = y;
+    if (round > 0 && consider(y, 1)) return res;
+  }
   // 2. Where those bounds disagree with the final normals: Lemke on the friction LCP.
   if (lemkeSolve(p, y) && consider(y, 2)) return res;
   // 3. Lemke can stop on a ray for friction LCPs that have a solution (they are not

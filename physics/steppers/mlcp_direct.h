@@ -1,7 +1,8 @@
 // A1's direct solve of the MLCP  Γλ = β - J̌v̌ + w  with bounds (the report's C, section II.3):
-// ODE's Dantzig pivoting solver as DART packages it (libdart-external-odelcpsolver); where its
-// friction handling leaves bounds that disagree with the final normal impulses, Lemke's method
-// on the friction LCP (lemke.h); where Lemke stops on a ray, Gauss-Seidel finds the active set.
+// ODE's Dantzig pivoting solver as DART packages it (libdart-external-odelcpsolver), for fixed
+// friction bounds re-set from the normals a few rounds; where the bounds still disagree with the
+// normal impulses, Lemke's method on the friction LCP (lemke.h); where Lemke stops on a ray,
+// Gauss-Seidel finds the active set.
 // Every answer is polished: the equalities of its active set solved exactly.
 #pragma once
 
@@ -16,7 +17,8 @@ struct DenseMLCP {
   std::vector<double> A;        // n x n, row-major (Γ)
   std::vector<double> b;        // right-hand side β - J̌v̌
   std::vector<double> lo, hi;   // bounds; for friction rows the coefficient ±μ
-  std::vector<int> findex;      // friction row -> its normal row, else -1
+  std::vector<int> findex;      // friction row -> its first normal row, else -1
+  std::vector<int> fcount;      // friction row -> how many normal rows (contiguous) bound it
 };
 
 // Γ = J̌M̌⁻¹J̌ᵀ (entries only where rows share a body), b = β - J̌v̌ and the bounds, from rows.

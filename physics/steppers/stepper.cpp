@@ -16,6 +16,65 @@ void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>
     if (r.lambda != 0) applyImpulse(r, r.lambda, v.data(), w.data());
 }
 
+namespace {
+
+// A contact block: the normal rows of one manifold, λ >= 0 each. Finds the increment Δ with
+//   λ + Δ >= 0,  w = KΔ - b >= 0,  (λ + Δ)ᵢ wᵢ = 0     (b = cBias β - cVel J̌v̌)
+// trying every point pushing first (the precomputed inverse), then smaller active sets.
+void solveContactBlock(const SolveUnit& u, const BlockData& d, Row* rows, const double* b, double* delta) {
+  const int k = u.size;
+  double lam[4];
+  for (int i = 0; i < k; ++i) lam[i] = rows[u.first + i].lambda;
+  Eigen::Vector4d bb = Eigen::Vector4d::Zero();
+  for (int i = 0; i < k; ++i) bb[i] = b[i];
+  const Eigen::Vector4d full = d.invK * bb;
+  bool ok = true;
+  for (int i = 0; i < k; ++i) ok = ok && lam[i] + full[i] >= 0;
+  if (ok) {
+    for (int i = 0; i < k; ++i) delta[i] = full[i];
+    return;
+  }
+  // Active sets by decreasing size; the rows left out drop to λ = 0 (Δ = -λ) and must not pull.
+  const int fullMask = (1 << k) - 1;
+  for (int size = k - 1; size >= 0; --size) {
+    for (int mask = fullMask - 1; mask >= 0; --mask) {
+      if (__builtin_popcount(static_cast<unsigned>(mask)) != size) continue;
+      int S[4], N[4], ns = 0, nn = 0;
+      for (int i = 0; i < k; ++i) (mask >> i & 1 ? S[ns++] : N[nn++]) = i;
+      double D[4];
+      for (int i = 0; i < nn; ++i) D[N[i]] = -lam[N[i]];
+      if (ns > 0) {
+        Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 4, 4> A(ns, ns);
+        Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 4, 1> r(ns);
+        for (int i = 0; i < ns; ++i) {
+          r[i] = b[S[i]];
+          for (int j = 0; j < nn; ++j) r[i] -= d.K(S[i], N[j]) * D[N[j]];
+          for (int j = 0; j < ns; ++j) A(i, j) = d.K(S[i], S[j]);
+        }
+        const auto x = A.ldlt().solve(r);
+        bool good = true;
+        for (int i = 0; i < ns; ++i) {
+          D[S[i]] = x[i];
+          good = good && std::isfinite(x[i]) && lam[S[i]] + x[i] >= 0;
+        }
+        if (!good) continue;
+      }
+      bool pulls = false;
+      for (int i = 0; i < nn && !pulls; ++i) {
+        double wi = -b[N[i]];
+        for (int j = 0; j < k; ++j) wi += d.K(N[i], j) * D[j];
+        pulls = wi < -1e-12 * (1 + std::abs(b[N[i]]));
+      }
+      if (pulls) continue;
+      for (int i = 0; i < k; ++i) delta[i] = D[i];
+      return;
+    }
+  }
+  for (int i = 0; i < k; ++i) delta[i] = 0;  // no set fits (round-off at a degenerate point): keep λ
+}
+
+}  // namespace
+
 double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, double cBias, double cVel,
              double cBiasTarget, double cVelTarget) {
   Row* rows = cs.rows.data();
@@ -23,14 +82,14 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, do
   Vec3* w = ww.data();
   double change = 0;
   for (const SolveUnit& u : cs.units) {
-    if (u.size == 1) {
+    if (u.kind == SolveUnit::Single) {
       Row& r = rows[u.first];
       const double cb = r.velocityTarget ? cBiasTarget : cBias;
       const double cv = r.velocityTarget ? cVelTarget : cVel;
       double dl = r.effMass * (cb * r.bias - cv * rowVelocity(r, v, w));
       double lo = r.lo, hi = r.hi;
       if (r.normalRow >= 0) {
-        const double ln = rows[r.normalRow].lambda;
+        const double ln = normalImpulse(r, rows);
         lo *= ln;
         hi *= ln;
       }
@@ -41,22 +100,32 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, do
         applyImpulse(r, dl, v, w);
         if (r.effMass > 0) change = std::max(change, std::abs(dl) / r.effMass);
       }
+      continue;
+    }
+    // Blocks: b = cBias β - cVel J̌v̌ for each of their rows.
+    double b[4], dl[4];
+    for (int i = 0; i < u.size; ++i) {
+      const Row& r = rows[u.first + i];
+      const double cb = r.velocityTarget ? cBiasTarget : cBias;
+      const double cv = r.velocityTarget ? cVelTarget : cVel;
+      b[i] = cb * r.bias - cv * rowVelocity(r, v, w);
+    }
+    const BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
+    if (u.kind == SolveUnit::Stable) {
+      // Unbounded: Δλ = K⁻¹ b.
+      for (int i = 0; i < u.size; ++i) {
+        dl[i] = 0;
+        for (int j = 0; j < u.size; ++j) dl[i] += d.invK(i, j) * b[j];
+      }
     } else {
-      // A 'stable' block: all of its rows at once, Δλ = K⁻¹ (cBias β - cVel J̌ v̌).
-      Vec3 rhs = Vec3::Zero();
-      for (int i = 0; i < u.size; ++i) {
-        const Row& r = rows[u.first + i];
-        const double cb = r.velocityTarget ? cBiasTarget : cBias;
-        const double cv = r.velocityTarget ? cVelTarget : cVel;
-        rhs[i] = cb * r.bias - cv * rowVelocity(r, v, w);
-      }
-      const Vec3 dl = u.invK * rhs;
-      for (int i = 0; i < u.size; ++i) {
-        Row& r = rows[u.first + i];
-        r.lambda += dl[i];
-        applyImpulse(r, dl[i], v, w);
-        if (r.effMass > 0) change = std::max(change, std::abs(dl[i]) / r.effMass);
-      }
+      solveContactBlock(u, d, rows, b, dl);
+    }
+    for (int i = 0; i < u.size; ++i) {
+      Row& r = rows[u.first + i];
+      if (dl[i] == 0) continue;
+      r.lambda += dl[i];
+      applyImpulse(r, dl[i], v, w);
+      if (r.effMass > 0) change = std::max(change, std::abs(dl[i]) / r.effMass);
     }
   }
   return change;
@@ -66,6 +135,79 @@ void recordSubStep(StepContext& c, int j) {
   const size_t nb = c.bodies();
   std::copy(c.v.begin(), c.v.end(), c.subV.begin() + static_cast<long>(static_cast<size_t>(j) * nb));
   std::copy(c.w.begin(), c.w.end(), c.subW.begin() + static_cast<long>(static_cast<size_t>(j) * nb));
+}
+
+void beginSubSteps(StepContext& c) {
+  const size_t nb = c.bodies();
+  c.subPoses = c.poses;
+  c.sumV.assign(nb, Vec3::Zero());
+  c.sumW.assign(nb, Vec3::Zero());
+}
+
+void advanceSubPoses(StepContext& c, int j, RotationRule rule) {
+  const double dt = c.h() / c.n();
+  const size_t nb = c.bodies();
+  for (size_t i = 0; i < nb; ++i) {
+    if (c.model->bodies[i].isStatic) continue;
+    const Vec3& v = c.subV[static_cast<size_t>(j) * nb + i];
+    const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
+    c.sumV[i] += dt * v;
+    c.subPoses[i].p = c.poses[i].p + c.sumV[i];
+    if (rule == RotationRule::Product) {
+      c.subPoses[i].q = (c.subPoses[i].q * Rq(dt * w)).normalized();
+    } else {
+      c.sumW[i] += dt * w;
+      c.subPoses[i].q = (c.poses[i].q * Rq(c.sumW[i])).normalized();
+    }
+  }
+}
+
+void startSubStepImpulses(StepContext& c, int j) {
+  ConstraintSet& cs = *c.constraints;
+  if (!c.settings->warmStart) {
+    if (j > 0)
+      for (Row& r : cs.rows) r.lambda = 0;
+    return;
+  }
+  applyRowImpulses(cs, c.v, c.w);
+}
+
+void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vector<Vec3>& w) {
+  for (Row& r : cs.rows)
+    if (!r.velocityLevel) r.bias -= rowVelocity(r, v.data(), w.data());
+}
+
+void splitPositionErrors(StepContext& c) {
+  const size_t nb = c.bodies();
+  c.pseudoV.assign(nb, Vec3::Zero());
+  c.pseudoW.assign(nb, Vec3::Zero());
+  if (!c.settings->splitImpulse) return;
+  ConstraintSet& cs = *c.constraints;
+  for (const ContactDef& contact : cs.contacts) {
+    Row& r = cs.rows[static_cast<size_t>(contact.row)];
+    r.split = std::max(r.bias, 0.0);
+    r.bias -= r.split;
+  }
+}
+
+void solvePositionErrors(StepContext& c, int sweeps, double applyScale) {
+  if (!c.settings->splitImpulse) return;
+  ConstraintSet& cs = *c.constraints;
+  bool any = false;
+  for (const ContactDef& contact : cs.contacts) any |= cs.rows[static_cast<size_t>(contact.row)].split > 0;
+  if (!any) return;
+  const double target = c.settings->tau / c.n();  // τ of the error, over the whole step
+  c.pseudoLambda.assign(cs.contacts.size(), 0.0);
+  for (int it = 0; it < sweeps; ++it) {
+    for (size_t k = 0; k < cs.contacts.size(); ++k) {
+      const Row& r = cs.rows[static_cast<size_t>(cs.contacts[k].row)];
+      double dl = r.effMass * (target * r.split - rowVelocity(r, c.pseudoV.data(), c.pseudoW.data()));
+      const double next = std::max(0.0, c.pseudoLambda[k] + dl);
+      dl = next - c.pseudoLambda[k];
+      c.pseudoLambda[k] = next;
+      if (dl != 0) applyImpulse(r, dl / applyScale, c.pseudoV.data(), c.pseudoW.data());
+    }
+  }
 }
 
 Quat stepRotation(const Quat& q, const Vec3* w, size_t stride, int n, double dt, RotationRule rule) {
@@ -86,8 +228,8 @@ void stepCoordinatesEssential(StepContext& c) {
     BodyState& b = c.state->bodies[i];
     b.v = c.v[i];
     b.w = c.w[i];
-    b.x += h * b.v;
-    const Vec3 omegaWorld = b.q * b.w;
+    b.x += h * (b.v + c.pseudoV[i]);
+    const Vec3 omegaWorld = b.q * (b.w + c.pseudoW[i]);
     b.q = (Rq(h * omegaWorld) * b.q).normalized();
   }
 }
@@ -101,8 +243,9 @@ void stepCoordinatesSubStepped(StepContext& c, RotationRule rule) {
     BodyState& b = c.state->bodies[i];
     Vec3 sum = Vec3::Zero();
     for (int k = 0; k < n; ++k) sum += dt * c.subV[static_cast<size_t>(k) * nb + i];
-    b.x += sum;
+    b.x += sum + c.h() * c.pseudoV[i];
     b.q = stepRotation(b.q, &c.subW[i], nb, n, dt, rule);
+    if (!c.pseudoW[i].isZero()) b.q = (b.q * Rq(c.h() * c.pseudoW[i])).normalized();
     b.v = c.subV[static_cast<size_t>(n - 1) * nb + i];
     b.w = c.subW[static_cast<size_t>(n - 1) * nb + i];
   }

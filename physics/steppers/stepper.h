@@ -31,6 +31,13 @@ struct StepContext {
   std::vector<Vec3> v, w;          // solver velocities: linear (world), angular (body frame, v̌)
   // The sub-step velocities v^1..v^n the coordinates are stepped with (s4): index j*bodies + i.
   std::vector<Vec3> subV, subW;
+  // Coordinates at t + j h/n during a step (A3-A5 re-formulate from them), and the running sums
+  // Σ h/n v̌^k they are stepped with.
+  std::vector<Pose> subPoses;
+  std::vector<Vec3> sumV, sumW;
+  // Split impulse: pseudo-velocities that move the coordinates in s4 without being momentum.
+  std::vector<Vec3> pseudoV, pseudoW;
+  std::vector<double> pseudoLambda;  // per contact point
   StepStats stats;
 
   double h() const { return settings->dt; }
@@ -79,5 +86,29 @@ void stepCoordinatesSubStepped(StepContext& c, RotationRule rule);
 
 // Records the solver velocities as sub-step j's (0-based).
 void recordSubStep(StepContext& c, int j);
+
+// --- sub-stepping (A3-A5) ---------------------------------------------------------------------
+
+// Starts the coordinates of the sub-steps at the step's (before the first sub-step).
+void beginSubSteps(StepContext& c);
+// Steps c.subPoses past recorded sub-step j with `rule`: the coordinates at t + (j+1) h/n, by
+// the same formulas s4 uses (so after the last sub-step they are s4's result).
+void advanceSubPoses(StepContext& c, int j, RotationRule rule);
+// Each sub-step solves a fresh MLCP (the report's algorithms do not warm start): λ = 0; with
+// warm starting, the last sub-step's (or step's) λ instead, applied to the velocities.
+void startSubStepImpulses(StepContext& c, int j);
+// proc4:16, the bias update rule: β ← β - J̌ v̌ for every position-level row: not for friction
+// or motors, whose β is a velocity (IV.3.1.4; docs/algorithms.md).
+void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vector<Vec3>& w);
+
+// --- split impulse (an extension; docs/algorithms.md) -----------------------------------------
+// With settings.splitImpulse, takes each contact's penetration beyond the slop at the step's start
+// out of its bias (Row::split), so the velocity problem the algorithm solves (and warm starts)
+// carries no push-out; re-formulations subtract it again (ConstraintSet::reformulate).
+void splitPositionErrors(StepContext& c);
+// ... and corrects it instead with pseudo-velocities: `sweeps` Gauss-Seidel sweeps over the contact
+// normal rows for J p = τ split / n, from p = 0 (never warm started). s4 moves the coordinates by
+// h p; the velocities keep no trace of p. applyScale undoes the rows' scaled M̌⁻¹J̌ᵀ (A5's κ).
+void solvePositionErrors(StepContext& c, int sweeps, double applyScale);
 
 }  // namespace substep
