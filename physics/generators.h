@@ -64,8 +64,35 @@ struct ChainParams {
   double anchorRadius = 0.05;
 };
 
+// Humanoid ragdolls of 15 bodies: pelvis, spine, chest (boxes and a capsule), head (sphere),
+// upper and lower arms, upper and lower legs (capsules), feet (boxes), 68 kg by default with
+// the masses of an adult (pelvis 10 kg, forearm with hand 1 kg), joined by cone-twist joints
+// (spine, neck, shoulders, hips) and hinges (elbows, knees, ankles) with anatomical limits.
+// Ragdolls come in layers of `columns`: ragdoll k is column c = k mod columns of layer
+// L = k / columns. It stands (in its own frame: Y up, facing +Z) with its pelvis centre at
+// position + L offset + Ry(L yaw) (c - (columns-1)/2) spread, turned by orientation and then by
+// L yaw about Y (so with yaw 90 degrees the layers cross). Bodies are named <name>_<k>_<part>;
+// each ragdoll is its own group.
+struct RagdollParams {
+  int count = 1;
+  int columns = 1;
+  Vec3 position = Vec3::Zero();
+  Quat orientation = Quat::Identity();
+  Vec3 offset = Vec3(0, 1.2, 0);  // between consecutive layers [m]
+  Vec3 spread = Vec3(0.8, 0, 0);  // between the columns of a layer, before the layer's yaw [m]
+  double yaw = 0;                 // extra turn of each layer about Y over the previous [rad]
+  Vec3 velocity = Vec3::Zero();   // of every body [m/s]
+  double scale = 1;               // size; masses scale with its cube
+  double mass = 68;               // of one ragdoll at scale 1 [kg]
+  std::string name = "ragdoll";
+  BodyMaterial material;          // friction, restitution, group (mass/density unused)
+};
+// The parts, in the order their bodies are added.
+const std::vector<std::string>& ragdollParts();
+
 // These throw std::invalid_argument for out-of-range parameters (scene parsing checks first).
 void addStack(Scene& scene, const StackParams& p);
+void addRagdoll(Scene& scene, const RagdollParams& p);
 void addPyramid(Scene& scene, const PyramidParams& p);
 void addChain(Scene& scene, const ChainParams& p);
 

@@ -184,6 +184,7 @@ class Reader {
   Shape readShape(const Obj& o, bool isStatic, Pose* principal);
   void readMaterial(const Obj& o, BodyMaterial& m, bool isStatic) const;
   void readGenerator(const Obj& o, int index, Scene& scene);
+  Quat quaternionAt(const Obj& o, const std::string& key) const;
   void readJoint(const Obj& o, int index, Scene& scene) const;
   CameraPreset readCamera(const Obj& o, const Scene& scene) const;
   LoadedMesh mesh(const Obj& o, bool convex, double scale);
@@ -204,7 +205,7 @@ void Obj::fail(const std::string& path, const std::string& message) const { r_.f
 
 const std::vector<std::string> kShapeTypes = {"sphere", "box", "capsule", "cylinder", "convex", "plane", "mesh"};
 const std::vector<std::string> kJointTypes = {"ball", "hinge", "cone_twist", "fixed", "spring", "motor"};
-const std::vector<std::string> kGeneratorTypes = {"stack", "pyramid", "chain"};
+const std::vector<std::string> kGeneratorTypes = {"stack", "pyramid", "chain", "ragdoll"};
 
 const json& arrayAt(const Obj& o, const std::string& k) {
   const json& v = o.need(k);
@@ -397,15 +398,7 @@ void Reader::readBody(const Obj& o, Scene& scene) {
 
   Pose file;  // the pose the scene gives: of the shape's (mesh file's) frame
   file.p = o.vec3("position", Vec3::Zero());
-  if (o.has("orientation")) {
-    const json& v = o.need("orientation");
-    const std::string path = o.at("orientation");
-    if (!v.is_array() || v.size() != 4) fail(path, "expected a quaternion [w, x, y, z], got " + shown(v));
-    const Quat q(o.toNumber(v[0], item(path, 0), kAny), o.toNumber(v[1], item(path, 1), kAny),
-                 o.toNumber(v[2], item(path, 2), kAny), o.toNumber(v[3], item(path, 3), kAny));
-    if (!(q.norm() >= 1e-9)) fail(path, "expected a non-zero quaternion [w, x, y, z], got " + v.dump());
-    file.q = q.normalized();
-  }
+  if (o.has("orientation")) file.q = quaternionAt(o, "orientation");
 
   try {
     if (m.mass)
@@ -424,12 +417,25 @@ void Reader::readBody(const Obj& o, Scene& scene) {
   addBody(scene, b, s);
 }
 
+// A unit quaternion [w, x, y, z] (normalised; zero is an error).
+Quat Reader::quaternionAt(const Obj& o, const std::string& key) const {
+  const json& v = o.need(key);
+  const std::string path = o.at(key);
+  if (!v.is_array() || v.size() != 4) fail(path, "expected a quaternion [w, x, y, z], got " + shown(v));
+  const Quat q(o.toNumber(v[0], item(path, 0), kAny), o.toNumber(v[1], item(path, 1), kAny),
+               o.toNumber(v[2], item(path, 2), kAny), o.toNumber(v[3], item(path, 3), kAny));
+  if (!(q.norm() >= 1e-9)) fail(path, "expected a non-zero quaternion [w, x, y, z], got " + v.dump());
+  return q.normalized();
+}
+
 void Reader::readGenerator(const Obj& o, int index, Scene& scene) {
   const std::string type = oneOf(o, "type", kGeneratorTypes, "generator type");
   std::vector<std::string> keys = {"type", "name", "mass", "density", "friction", "restitution", "group"};
   if (type == "stack") keys.insert(keys.end(), {"count", "half_extents", "position", "gap"});
   if (type == "pyramid") keys.insert(keys.end(), {"levels", "half_extents", "position", "gap"});
   if (type == "chain") keys.insert(keys.end(), {"count", "link", "anchor", "direction", "spacing", "joint"});
+  if (type == "ragdoll")
+    keys.insert(keys.end(), {"count", "columns", "position", "orientation", "offset", "spread", "yaw", "velocity", "scale"});
   o.allow(keys);
 
   BodyMaterial m;
@@ -465,6 +471,23 @@ void Reader::readGenerator(const Obj& o, int index, Scene& scene) {
       p.name = name;
       p.material = m;
       addPyramid(scene, p);
+    } else if (type == "ragdoll") {
+      if (o.has("density")) fail(o.at("density"), "a ragdoll takes \"mass\" (of the whole ragdoll), not a density");
+      RagdollParams p;
+      p.count = o.integer("count", 1, 10000, 1);
+      p.position = o.vec3("position", Vec3::Zero());
+      if (o.has("orientation")) p.orientation = quaternionAt(o, "orientation");
+      p.columns = o.integer("columns", 1, 10000, 1);
+      p.offset = o.vec3("offset", Vec3(0, 1.2, 0));
+      p.spread = o.vec3("spread", Vec3(0.8, 0, 0));
+      p.yaw = o.number("yaw", kAny, 0);
+      p.velocity = o.vec3("velocity", Vec3::Zero());
+      p.scale = o.number("scale", kPositive, 1);
+      if (m.mass) p.mass = *m.mass;
+      p.name = name;
+      p.material = m;
+      p.material.mass.reset();
+      addRagdoll(scene, p);
     } else {
       ChainParams p;
       p.count = o.integer("count", 1, 100000);

@@ -36,14 +36,14 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
     const Body& b = model.bodies[i];
     if (!b.isStatic) ctx_.mass[i] = BodyMass{b.invMass, b.invInertia};
   }
+  // assign, not resize: Eigen's vectors are not zeroed by default construction.
   ctx_.poses.resize(nb);
-  ctx_.pseudoV.resize(nb);
-  ctx_.pseudoW.resize(nb);
-  reach_.resize(nb);
-  ctx_.v.resize(nb);
-  ctx_.w.resize(nb);
-  ctx_.subV.resize(nb * static_cast<size_t>(settings.substeps));
-  ctx_.subW.resize(nb * static_cast<size_t>(settings.substeps));
+  ctx_.pseudoV.assign(nb, Vec3::Zero());
+  ctx_.pseudoW.assign(nb, Vec3::Zero());
+  reach_.assign(nb, 0.0);
+  ctx_.v.assign(nb, Vec3::Zero());
+  ctx_.w.assign(nb, Vec3::Zero());
+  setSettings(settings);
 }
 
 World::~World() = default;
@@ -52,8 +52,8 @@ void World::setSettings(const SolverSettings& settings) {
   if (settings.algorithm != settings_.algorithm) stepper_ = makeStepper(settings.algorithm);
   settings_ = settings;
   const size_t nb = model_.bodies.size();
-  ctx_.subV.resize(nb * static_cast<size_t>(settings.substeps));
-  ctx_.subW.resize(nb * static_cast<size_t>(settings.substeps));
+  ctx_.subV.assign(nb * static_cast<size_t>(settings.substeps), Vec3::Zero());
+  ctx_.subW.assign(nb * static_cast<size_t>(settings.substeps), Vec3::Zero());
 }
 
 void World::geometry() {

@@ -51,7 +51,7 @@ void solveContactBlock(const SolveUnit& u, const BlockData& d, Row* rows, const 
           for (int j = 0; j < nn; ++j) r[i] -= d.K(S[i], N[j]) * D[N[j]];
           for (int j = 0; j < ns; ++j) A(i, j) = d.K(S[i], S[j]);
         }
-        const auto x = A.ldlt().solve(r);
+        const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 4, 1> x = A.ldlt().solve(r);
         bool good = true;
         for (int i = 0; i < ns; ++i) {
           D[S[i]] = x[i];
