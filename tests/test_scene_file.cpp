@@ -549,5 +549,41 @@ TEST(Generators, ListNamesEveryType) {
     EXPECT_FALSE(g.summary.empty());
     EXPECT_EQ(g.summary.find('\n'), std::string::npos);
   }
-  EXPECT_EQ(types, (std::set<std::string>{"stack", "pyramid", "chain"}));
+  EXPECT_EQ(types, (std::set<std::string>{"stack", "pyramid", "chain", "ragdoll"}));
+}
+
+// A ragdoll: 14 bodies of an adult's masses (68 kg, pelvis to forearm 10:1), 13 joints whose
+// anchors coincide on both bodies, every joint limited; layers of columns as documented.
+TEST(Generators, RagdollBodiesJointsAndLayout) {
+  const Scene s = parseScene(R"({"bodies": [], "generators": [{"type": "ragdoll", "name": "r", "count": 6,
+      "columns": 3, "position": [1, 2, 3], "offset": [0, 0.5, 0], "spread": [0.8, 0, 0], "yaw": 1.5707963267948966}]})",
+                             "<ragdoll>", ".");
+  ASSERT_EQ(s.model.bodies.size(), 6u * ragdollParts().size());
+  EXPECT_EQ(ragdollParts().size(), 14u);
+  ASSERT_EQ(s.model.joints.size(), 6u * 13u);
+  double total = 0;
+  for (size_t i = 0; i < ragdollParts().size(); ++i) total += s.model.bodies[i].mass;
+  EXPECT_NEAR(total, 68.0, 1e-9);
+  const int pelvis = s.model.bodyIndex("r_0_pelvis"), forearm = s.model.bodyIndex("r_0_forearm_l");
+  ASSERT_GE(pelvis, 0);
+  ASSERT_GE(forearm, 0);
+  EXPECT_NEAR(s.model.bodies[static_cast<size_t>(pelvis)].mass / s.model.bodies[static_cast<size_t>(forearm)].mass, 10.0,
+              1e-9);
+  for (const Joint& j : s.model.joints) {
+    EXPECT_TRUE(j.hasLimits) << j.name;
+    EXPECT_LT((s.initial.bodies[static_cast<size_t>(j.bodyA)].pose().apply(j.localAnchorA) -
+               s.initial.bodies[static_cast<size_t>(j.bodyB)].pose().apply(j.localAnchorB))
+                  .norm(),
+              1e-12)
+        << j.name;
+    EXPECT_NE(s.model.bodies[static_cast<size_t>(j.bodyA)].group, -1);
+  }
+  // Column 1 of layer 0 is at the position; layer 1 is 0.5 higher and turned a quarter.
+  const Vec3 p01 = s.initial.bodies[static_cast<size_t>(s.model.bodyIndex("r_1_pelvis"))].x;
+  EXPECT_LT((p01 - Vec3(1, 2, 3)).norm(), 1e-12);
+  const Vec3 p10 = s.initial.bodies[static_cast<size_t>(s.model.bodyIndex("r_3_pelvis"))].x;
+  EXPECT_LT((p10 - Vec3(1, 2.5, 3.8)).norm(), 1e-9);  // Ry(90°) turns -0.8 x into +0.8 z
+  // Each ragdoll is its own group.
+  EXPECT_NE(s.model.bodies[static_cast<size_t>(pelvis)].group,
+            s.model.bodies[static_cast<size_t>(s.model.bodyIndex("r_1_pelvis"))].group);
 }
