@@ -9,5 +9,6 @@ namespace substep::app {
 // Each adds its subcommand; when the user picks it, its callback stores the work in `action`.
 void addRunCommand(CLI::App& app, std::function<int()>& action);
 void addScenesCommand(CLI::App& app, std::function<int()>& action);
+void addRenderCommand(CLI::App& app, std::function<int()>& action);
 
 }  // namespace substep::app

@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   std::function<int()> action;
   addRunCommand(app, action);
   addScenesCommand(app, action);
+  addRenderCommand(app, action);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

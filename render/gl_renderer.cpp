@@ -1,0 +1,727 @@
+#include "render/gl_renderer.h"
+
+#include "render/meshes.h"
+#include "render/text.h"
+
+// OSMesa exports every gl* entry point, so the prototypes are linked directly: no loader.
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/osmesa.h>
+#include <GL/gl.h>
+#include <GL/glext.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+
+namespace substep::render {
+
+namespace {
+
+// ---- shaders (GLSL 3.30 core) ----
+
+const char* kMeshVS = R"(#version 330 core
+layout(location = 0) in vec3 aPos;
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in float aCap;
+layout(location = 3) in vec4 iRot;          // quaternion x, y, z, w
+layout(location = 4) in vec4 iPosStretch;   // position, capsule stretch
+layout(location = 5) in vec4 iScaleFlags;   // scale, flags
+layout(location = 6) in vec4 iColour;       // rgb, highlight
+uniform mat4 uViewProj;
+uniform mat4 uLightMatrix;
+uniform float uNormalBias;
+out vec3 vShadow;
+out vec3 vWorld;
+out vec3 vNormal;
+out vec3 vColour;
+out float vHighlight;
+flat out int vFlags;
+vec3 qrot(vec4 q, vec3 v) { return v + 2.0 * cross(q.xyz, cross(q.xyz, v) + q.w * v); }
+void main() {
+  vec3 local = aPos * iScaleFlags.xyz + vec3(0.0, aCap * iPosStretch.w, 0.0);
+  vWorld = qrot(iRot, local) + iPosStretch.xyz;
+  vNormal = qrot(iRot, aNormal / iScaleFlags.xyz);   // inverse-transpose of a scale is its inverse
+  vColour = iColour.rgb;
+  vHighlight = iColour.a;
+  vFlags = int(iScaleFlags.w + 0.5);
+  gl_Position = uViewProj * vec4(vWorld, 1.0);
+  // The light's projection is orthographic, so its coordinates interpolate exactly.
+  vShadow = (uLightMatrix * vec4(vWorld + normalize(vNormal) * uNormalBias, 1.0)).xyz * 0.5 + 0.5;
+}
+)";
+
+// Compiled three times with MODE 0 (lit), 1 (overlay: flat) and 2 (depth only, the shadow
+// pass): llvmpipe runs both sides of a branch on a uniform, so one program with a mode uniform
+// made the shadow pass pay for the lighting.
+const char* kMeshFS = R"(
+in vec3 vShadow;
+in vec3 vWorld;
+in vec3 vNormal;
+in vec3 vColour;
+in float vHighlight;
+flat in int vFlags;
+uniform vec3 uEye;
+uniform vec3 uLightDir;         // the direction light travels
+uniform sampler2DShadow uShadowMap;
+uniform int uShadows;
+uniform vec3 uHorizon;
+uniform vec2 uFog;              // start, end [m]
+out vec4 fragColour;
+
+void main() {
+#if MODE == 2
+  fragColour = vec4(1.0);
+#else
+  vec3 n = normalize(vNormal);
+  if (!gl_FrontFacing) n = -n;   // the inside of a bowl, or a mesh wound the other way
+  vec3 v = normalize(uEye - vWorld);
+#if MODE == 1
+  fragColour = vec4(vColour * (0.55 + 0.45 * abs(dot(n, v))), 1.0);
+#else
+  vec3 albedo = vColour;
+  if ((vFlags & 1) != 0 && n.y > 0.5) {
+    // Anti-aliased grid lines every metre, stronger every five, fading where a pixel spans a line.
+    vec2 w = fwidth(vWorld.xz);
+    vec2 g1 = abs(fract(vWorld.xz - 0.5) - 0.5) / max(w, 1e-5);
+    vec2 g5 = abs(fract(vWorld.xz / 5.0 - 0.5) - 0.5) * 5.0 / max(w, 1e-5);
+    float fade = 1.0 - smoothstep(0.15, 0.5, max(w.x, w.y));
+    float minor = (1.0 - min(min(g1.x, g1.y), 1.0)) * fade;
+    float major = 1.0 - min(min(g5.x, g5.y) / 1.5, 1.0);
+    albedo *= 1.0 - 0.22 * max(minor, major);
+  }
+  albedo = mix(albedo, vec3(1.0, 0.9, 0.3), 0.35 * vHighlight);
+  vec3 L = -uLightDir;
+  float ndl = max(dot(n, L), 0.0);
+  // Outside the map (beyond the casters) is lit. One hardware-filtered tap: the 2x2 texels
+  // around the point, compared and blended (llvmpipe pays dearly for each lookup).
+  float sh = 1.0;
+  if (uShadows != 0 && ndl > 0.0 && clamp(vShadow, 0.0, 1.0) == vShadow && vShadow.z < 1.0)
+    sh = texture(uShadowMap, vShadow);
+  vec3 h = normalize(L + v);
+  // Powers by squaring: llvmpipe's pow() costs as much as the rest of the shader.
+  float s2 = max(dot(n, h), 0.0);
+  s2 *= s2; s2 *= s2; s2 *= s2; s2 *= s2; s2 *= s2;   // ^32
+  float spec = s2 * 0.25 * step(0.0, ndl);
+  // Sky and ground ambient, plus a weak light from the eye so faces away from the sun keep their shape.
+  vec3 ambient = mix(vec3(0.20, 0.19, 0.18), vec3(0.36, 0.40, 0.47), 0.5 + 0.5 * n.y) + 0.18 * max(dot(n, v), 0.0);
+  vec3 col = albedo * (ambient + 0.78 * ndl * sh * vec3(1.0, 0.97, 0.9)) + spec * sh;
+  float rim = 1.0 - max(dot(n, v), 0.0);
+  col += vHighlight * rim * rim * vec3(1.0, 0.8, 0.2);
+  col = mix(col, uHorizon, smoothstep(uFog.x, uFog.y, length(uEye - vWorld)));
+  fragColour = vec4(col, 1.0);
+#endif
+#endif
+}
+)";
+
+// A triangle covering the viewport; the sky's colour follows the elevation of the view ray.
+// The sky, drawn after the resolve under what is there ("under" blending, see drawSky). Its
+// colour follows the elevation of the view ray; the ray of a far-plane point is affine in screen
+// position, so it is computed per vertex.
+const char* kSkyVS = R"(#version 330 core
+uniform mat4 uInvViewProj;
+out vec3 vRay;
+void main() {
+  vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
+  vec4 a = uInvViewProj * vec4(p, -1.0, 1.0);
+  vec4 b = uInvViewProj * vec4(p, 1.0, 1.0);
+  vRay = b.xyz / b.w - a.xyz / a.w;
+  gl_Position = vec4(p, 1.0, 1.0);
+}
+)";
+
+const char* kSkyFS = R"(#version 330 core
+in vec3 vRay;
+uniform vec3 uHorizon;
+out vec4 fragColour;
+void main() {
+  float y = vRay.y * inversesqrt(dot(vRay, vRay));
+  vec3 zenith = vec3(0.30, 0.45, 0.68), below = vec3(0.50, 0.52, 0.54);
+  // sqrt(y) rather than a pow: this pass covers the frame and llvmpipe pays per pixel.
+  vec3 up = mix(uHorizon, zenith, sqrt(max(y, 0.0)));
+  vec3 down = mix(uHorizon, below, min(1.0, -y * 4.0));
+  fragColour = vec4(y > 0.0 ? up : down, 1.0);
+}
+)";
+
+const char* kTextVS = R"(#version 330 core
+layout(location = 0) in vec2 aPos;      // pixels, y down
+layout(location = 1) in vec2 aUV;       // atlas; x < 0: solid
+layout(location = 2) in vec4 aColour;
+uniform vec2 uFrame;
+out vec2 vUV;
+out vec4 vColour;
+void main() {
+  vUV = aUV;
+  vColour = aColour;
+  gl_Position = vec4(aPos.x / uFrame.x * 2.0 - 1.0, 1.0 - aPos.y / uFrame.y * 2.0, 0.0, 1.0);
+}
+)";
+
+const char* kTextFS = R"(#version 330 core
+in vec2 vUV;
+in vec4 vColour;
+uniform sampler2D uAtlas;
+out vec4 fragColour;
+void main() {
+  float a = vUV.x < 0.0 ? 1.0 : texture(uAtlas, vUV).r;
+  fragColour = vec4(vColour.rgb, vColour.a * a);
+}
+)";
+
+const Vec3f kHorizon(0.78f, 0.82f, 0.86f);
+
+GLuint compile(GLenum type, const char* src, const char* what) {
+  GLuint s = glCreateShader(type);
+  glShaderSource(s, 1, &src, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[4096];
+    glGetShaderInfoLog(s, sizeof log, nullptr, log);
+    throw RenderError(std::string("GL: the ") + what + " shader does not compile: " + log);
+  }
+  return s;
+}
+
+GLuint link(const char* vs, const char* fs, const char* what) {
+  const GLuint v = compile(GL_VERTEX_SHADER, vs, what), f = compile(GL_FRAGMENT_SHADER, fs, what);
+  GLuint p = glCreateProgram();
+  glAttachShader(p, v);
+  glAttachShader(p, f);
+  glLinkProgram(p);
+  glDeleteShader(v);
+  glDeleteShader(f);
+  GLint ok = 0;
+  glGetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[4096];
+    glGetProgramInfoLog(p, sizeof log, nullptr, log);
+    throw RenderError(std::string("GL: the ") + what + " program does not link: " + log);
+  }
+  return p;
+}
+
+struct GpuMesh {
+  GLuint vao = 0, vbo = 0, ebo = 0;
+  GLsizei count = 0;
+};
+
+// Per-instance data as the vertex shader reads it (locations 3-6).
+struct GpuInstance {
+  float rot[4];
+  float posStretch[4];
+  float scaleFlags[4];
+  float colour[4];
+};
+
+GpuInstance pack(const Instance& in) {
+  GpuInstance g;
+  const Quatf q = in.rotation.normalized();
+  g.rot[0] = q.x(), g.rot[1] = q.y(), g.rot[2] = q.z(), g.rot[3] = q.w();
+  g.posStretch[0] = in.position.x(), g.posStretch[1] = in.position.y(), g.posStretch[2] = in.position.z();
+  g.posStretch[3] = in.stretch;
+  g.scaleFlags[0] = in.scale.x(), g.scaleFlags[1] = in.scale.y(), g.scaleFlags[2] = in.scale.z();
+  g.scaleFlags[3] = static_cast<float>(in.flags);
+  g.colour[0] = in.colour.x(), g.colour[1] = in.colour.y(), g.colour[2] = in.colour.z();
+  g.colour[3] = in.highlight;
+  return g;
+}
+
+struct TextVertex {
+  float x, y, s, t;
+  float r, g, b, a;
+};
+
+}  // namespace
+
+struct GlRenderer::Impl {
+  OSMesaContext ctx = nullptr;
+  std::vector<uint8_t> dummy;  // OSMesa needs a buffer to make the context current; we draw into FBOs
+  std::vector<uint8_t> rowTemp;
+  int width = 0, height = 0, samples = 1, shadowSize = 0;
+  GLuint msFbo = 0, msColour = 0, msDepth = 0;  // the scene's buffers (msFbo is outFbo without multisampling)
+  GLuint outFbo = 0, outColour = 0;
+  GLuint shadowFbo = 0, shadowTex = 0;
+  GLuint meshProg = 0, flatProg = 0, depthProg = 0, skyProg = 0, textProg = 0;
+  GLuint instanceVbo = 0, emptyVao = 0, textVao = 0, textVbo = 0;
+  std::vector<GpuMesh> primitives;
+  std::map<const Mesh*, GpuMesh> custom;  // keyed by the model's mesh, uploaded on first use
+  std::vector<std::shared_ptr<const Mesh>> customKeep;  // so a key is never reused by a new mesh
+  std::string fontPath;
+  std::map<int, std::unique_ptr<Font>> fonts;  // by pixel size
+  std::map<int, GLuint> atlases;
+
+  void makeCurrent() {
+    if (!OSMesaMakeCurrent(ctx, dummy.data(), GL_UNSIGNED_BYTE, 4, 4)) throw RenderError("OSMesaMakeCurrent failed");
+  }
+
+  GpuMesh upload(const MeshData& m) {
+    GpuMesh g;
+    glGenVertexArrays(1, &g.vao);
+    glBindVertexArray(g.vao);
+    glGenBuffers(1, &g.vbo);
+    glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(m.vertices.size() * sizeof(MeshVertex)), m.vertices.data(),
+                 GL_STATIC_DRAW);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(MeshVertex), reinterpret_cast<void*>(offsetof(MeshVertex, position)));
+    glEnableVertexAttribArray(1);
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(MeshVertex), reinterpret_cast<void*>(offsetof(MeshVertex, normal)));
+    glEnableVertexAttribArray(2);
+    glVertexAttribPointer(2, 1, GL_FLOAT, GL_FALSE, sizeof(MeshVertex), reinterpret_cast<void*>(offsetof(MeshVertex, capSign)));
+    glGenBuffers(1, &g.ebo);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g.ebo);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(m.indices.size() * sizeof(uint32_t)), m.indices.data(),
+                 GL_STATIC_DRAW);
+    g.count = static_cast<GLsizei>(m.indices.size());
+    // Instance attributes come from the shared instance buffer; pointers are set per draw.
+    glBindBuffer(GL_ARRAY_BUFFER, instanceVbo);
+    for (GLuint loc = 3; loc <= 6; ++loc) {
+      glEnableVertexAttribArray(loc);
+      glVertexAttribDivisor(loc, 1);
+    }
+    glBindVertexArray(0);
+    return g;
+  }
+
+  const GpuMesh& meshFor(int id, const DrawList& dl) {
+    if (id < kFirstCustomMesh) return primitives[static_cast<size_t>(id)];
+    const auto& sp = dl.meshes.at(static_cast<size_t>(id - kFirstCustomMesh));
+    auto it = custom.find(sp.get());
+    if (it != custom.end()) return it->second;
+    customKeep.push_back(sp);
+    return custom.emplace(sp.get(), upload(modelMesh(*sp))).first->second;
+  }
+
+  Font& font(int px) {
+    auto it = fonts.find(px);
+    if (it != fonts.end()) return *it->second;
+    auto f = std::make_unique<Font>(fontPath, static_cast<float>(px));
+    GLuint tex;
+    glGenTextures(1, &tex);
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_R8, f->atlasWidth(), f->atlasHeight(), 0, GL_RED, GL_UNSIGNED_BYTE, f->atlas().data());
+    // Glyphs are placed on whole pixels, so nearest sampling reproduces the rasterised coverage exactly.
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    atlases[px] = tex;
+    return *fonts.emplace(px, std::move(f)).first->second;
+  }
+
+  // Draws instances grouped by mesh with one instanced call per mesh.
+  // Within a mesh, nearest first: hidden fragments then fail the depth test early.
+  void drawInstances(const std::vector<Instance>& all, const DrawList& dl, bool shadowCasters, const Vec3f& eye) {
+    std::vector<const Instance*> list;
+    list.reserve(all.size());
+    for (const Instance& in : all)
+      if (!shadowCasters || !(in.flags & kNoShadow)) list.push_back(&in);
+    if (list.empty()) return;
+    std::stable_sort(list.begin(), list.end(), [&](const Instance* a, const Instance* b) {
+      if (a->mesh != b->mesh) return a->mesh < b->mesh;
+      return (a->position - eye).squaredNorm() < (b->position - eye).squaredNorm();
+    });
+    std::vector<GpuInstance> packed(list.size());
+    for (size_t i = 0; i < list.size(); ++i) packed[i] = pack(*list[i]);
+    glBindBuffer(GL_ARRAY_BUFFER, instanceVbo);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(packed.size() * sizeof(GpuInstance)), packed.data(),
+                 GL_STREAM_DRAW);
+    for (size_t first = 0; first < list.size();) {
+      size_t last = first;
+      while (last < list.size() && list[last]->mesh == list[first]->mesh) ++last;
+      const GpuMesh& m = meshFor(list[first]->mesh, dl);
+      // Primitives are closed and wound outwards, so their back faces need not be drawn (llvmpipe
+      // pays per fragment, hidden or not); model meshes may be open (a bowl) and stay two-sided.
+      if (list[first]->mesh < kFirstCustomMesh)
+        glEnable(GL_CULL_FACE);
+      else
+        glDisable(GL_CULL_FACE);
+      glBindVertexArray(m.vao);
+      const size_t base = first * sizeof(GpuInstance);
+      for (GLuint k = 0; k < 4; ++k)
+        glVertexAttribPointer(3 + k, 4, GL_FLOAT, GL_FALSE, sizeof(GpuInstance),
+                              reinterpret_cast<void*>(base + k * 4 * sizeof(float)));
+      glDrawElementsInstanced(GL_TRIANGLES, m.count, GL_UNSIGNED_INT, nullptr, static_cast<GLsizei>(last - first));
+      first = last;
+    }
+    glBindVertexArray(0);
+  }
+
+  // The light's view and orthographic projection around the shadow bounds, snapped to whole
+  // texels and to steps in size so shadows do not shimmer while bodies move.
+  Mat4f lightMatrix(const DrawList& dl, float& texelWorld) const {
+    const float radius = std::pow(1.15f, std::ceil(std::log(std::max(dl.boundsRadius, 0.25f)) / std::log(1.15f)));
+    texelWorld = 2 * radius / static_cast<float>(shadowSize);
+    const Vec3f dir = dl.lightDirection.normalized();
+    Vec3f up = std::abs(dir.y()) > 0.99f ? Vec3f::UnitZ() : Vec3f::UnitY();
+    const Vec3f s = dir.cross(up).normalized(), u = s.cross(dir);
+    Mat4f view = Mat4f::Identity();
+    view.block<1, 3>(0, 0) = s.transpose();
+    view.block<1, 3>(1, 0) = u.transpose();
+    view.block<1, 3>(2, 0) = -dir.transpose();
+    // Light-space centre, snapped to the texel grid.
+    Vec3f c(s.dot(dl.boundsCentre), u.dot(dl.boundsCentre), -dir.dot(dl.boundsCentre));
+    c.x() = std::round(c.x() / texelWorld) * texelWorld;
+    c.y() = std::round(c.y() / texelWorld) * texelWorld;
+    view(0, 3) = -c.x();
+    view(1, 3) = -c.y();
+    view(2, 3) = -c.z();
+    // Depth from 2 radii towards the light to far below: receivers beyond the casters' bounds still count.
+    const float zn = -2 * radius, zf = 2 * radius + std::max(4 * radius, 50.0f);
+    Mat4f ortho = Mat4f::Identity();
+    ortho(0, 0) = 1 / radius;
+    ortho(1, 1) = 1 / radius;
+    // View space looks down -z; a point at depth d (z = -d) maps to [-1, 1] over [zn, zf].
+    ortho(2, 2) = -2 / (zf - zn);
+    ortho(2, 3) = -(zf + zn) / (zf - zn);
+    return ortho * view;
+  }
+
+  void drawView(const DrawList& dl, const Viewport& vp) {
+    const float aspect = static_cast<float>(vp.width) / static_cast<float>(std::max(vp.height, 1));
+    const Mat4f viewProj = dl.camera.projection(aspect) * dl.camera.view();
+    float texelWorld = 0;
+    const Mat4f light = lightMatrix(dl, texelWorld);
+    const bool shadows = shadowSize > 0;
+
+    if (shadows) {
+      glBindFramebuffer(GL_FRAMEBUFFER, shadowFbo);
+      glViewport(0, 0, shadowSize, shadowSize);
+      glDisable(GL_SCISSOR_TEST);
+      glEnable(GL_DEPTH_TEST);
+      glDepthMask(GL_TRUE);
+      glClear(GL_DEPTH_BUFFER_BIT);
+      glEnable(GL_POLYGON_OFFSET_FILL);
+      glPolygonOffset(1.5f, 2.0f);
+      glUseProgram(depthProg);
+      glUniformMatrix4fv(glGetUniformLocation(depthProg, "uViewProj"), 1, GL_FALSE, light.data());
+      drawInstances(dl.solids, dl, true, dl.boundsCentre - 1000 * dl.lightDirection);
+      glDisable(GL_POLYGON_OFFSET_FILL);
+    }
+
+    glBindFramebuffer(GL_FRAMEBUFFER, msFbo);
+    const int glY = height - (vp.y + vp.height);  // GL counts rows from the bottom
+    glViewport(vp.x, glY, vp.width, vp.height);
+    // A clear of the whole surface is nearly free in llvmpipe (done per tile while binning); a
+    // scissored one is a real pass, so the scissor is only on for a panel of a grid.
+    const bool whole = vp.x == 0 && vp.y == 0 && vp.width == width && vp.height == height;
+    if (whole) {
+      glDisable(GL_SCISSOR_TEST);
+    } else {
+      glScissor(vp.x, glY, vp.width, vp.height);
+      glEnable(GL_SCISSOR_TEST);
+    }
+    glDepthMask(GL_TRUE);
+    glClearDepth(1.0);
+    glClear(GL_DEPTH_BUFFER_BIT);
+
+    // Solids.
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    glUseProgram(meshProg);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, shadowTex);
+    glUniform1i(glGetUniformLocation(meshProg, "uShadowMap"), 0);
+    glUniformMatrix4fv(glGetUniformLocation(meshProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
+    glUniformMatrix4fv(glGetUniformLocation(meshProg, "uLightMatrix"), 1, GL_FALSE, light.data());
+    glUniform3fv(glGetUniformLocation(meshProg, "uEye"), 1, dl.camera.eye.data());
+    const Vec3f ld = dl.lightDirection.normalized();
+    glUniform3fv(glGetUniformLocation(meshProg, "uLightDir"), 1, ld.data());
+    glUniform1i(glGetUniformLocation(meshProg, "uShadows"), shadows ? 1 : 0);
+    glUniform1f(glGetUniformLocation(meshProg, "uNormalBias"), 1.5f * texelWorld);
+    glUniform3fv(glGetUniformLocation(meshProg, "uHorizon"), 1, kHorizon.data());
+    const float dist = (dl.camera.eye - dl.camera.target).norm();
+    const float fog[2] = {std::max(3 * dist, 30.0f), std::max(12 * dist, 150.0f)};
+    glUniform2fv(glGetUniformLocation(meshProg, "uFog"), 1, fog);
+    drawInstances(dl.solids, dl, false, dl.camera.eye);
+
+    // Overlays show through the bodies (contacts lie between them), but not through each other.
+    if (!dl.overlays.empty()) {
+      glClear(GL_DEPTH_BUFFER_BIT);
+      glUseProgram(flatProg);
+      glUniformMatrix4fv(glGetUniformLocation(flatProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
+      glUniform3fv(glGetUniformLocation(flatProg, "uEye"), 1, dl.camera.eye.data());
+      drawInstances(dl.overlays, dl, false, dl.camera.eye);
+    }
+    glDisable(GL_SCISSOR_TEST);
+  }
+
+  // The sky behind a resolved view: the solids were drawn over transparent black, so after the
+  // resolve a pixel's alpha is how much of it they cover, and the sky fills the rest. Drawn
+  // single-sampled, this costs a third of a multisampled sky pass at 720p, and silhouettes
+  // against the sky keep their anti-aliasing.
+  void drawSky(const DrawList& dl, const Viewport& vp) {
+    const float aspect = static_cast<float>(vp.width) / static_cast<float>(std::max(vp.height, 1));
+    const Mat4f inv = (dl.camera.projection(aspect) * dl.camera.view()).inverse();
+    glViewport(vp.x, height - (vp.y + vp.height), vp.width, vp.height);
+    glUseProgram(skyProg);
+    glUniformMatrix4fv(glGetUniformLocation(skyProg, "uInvViewProj"), 1, GL_FALSE, inv.data());
+    glUniform3fv(glGetUniformLocation(skyProg, "uHorizon"), 1, kHorizon.data());
+    glBindVertexArray(emptyVao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+
+  // Text of one view: the HUD top left on a dark panel, the label top centre, the footer bottom left.
+  void drawText(const DrawList& dl, const Viewport& vp) {
+    const int px = std::clamp(static_cast<int>(std::lround(std::sqrt(double(vp.height) * height) / 36.0)), 11, 48);
+    Font& small = font(px);
+    const float pad = std::round(0.5f * px);
+    std::vector<TextVertex> solid, glyphsSmall, glyphsLarge;
+    auto rect = [](std::vector<TextVertex>& v, float x0, float y0, float x1, float y1, const Vec4f& c) {
+      const TextVertex a{x0, y0, -1, -1, c[0], c[1], c[2], c[3]}, b{x1, y0, -1, -1, c[0], c[1], c[2], c[3]},
+                       d{x1, y1, -1, -1, c[0], c[1], c[2], c[3]}, e{x0, y1, -1, -1, c[0], c[1], c[2], c[3]};
+      v.insert(v.end(), {a, b, d, a, d, e});
+    };
+    auto glyphs = [](std::vector<TextVertex>& v, const Font& f, const std::string& s, float x, float base,
+                     const Vec4f& c) {
+      for (const GlyphQuad& q : f.layout(s, x, base)) {
+        const TextVertex a{q.x0, q.y0, q.s0, q.t0, c[0], c[1], c[2], c[3]}, b{q.x1, q.y0, q.s1, q.t0, c[0], c[1], c[2], c[3]},
+                         d{q.x1, q.y1, q.s1, q.t1, c[0], c[1], c[2], c[3]}, e{q.x0, q.y1, q.s0, q.t1, c[0], c[1], c[2], c[3]};
+        v.insert(v.end(), {a, b, d, a, d, e});
+      }
+    };
+    auto block = [&](const std::vector<TextLine>& lines, float x, float top) {
+      if (lines.empty()) return;
+      float w = 0;
+      for (const TextLine& l : lines) w = std::max(w, small.width(l.text));
+      const float h = lines.size() * small.lineHeight();
+      rect(solid, x, top, x + w + 2 * pad, top + h + 2 * pad, Vec4f(0.05f, 0.06f, 0.08f, 0.62f));
+      float base = top + pad + small.ascent();
+      for (const TextLine& l : lines) {
+        glyphs(glyphsSmall, small, l.text, x + pad, base, l.colour);
+        base += small.lineHeight();
+      }
+    };
+    const float margin = std::round(0.6f * px);
+    float hudTop = vp.y + margin;
+    Font* large = nullptr;
+    if (!dl.label.empty()) {
+      // The label heads the panel, centred; the HUD goes under it so narrow panels do not overlap.
+      large = &font(static_cast<int>(std::lround(px * 1.5)));
+      const float w = large->width(dl.label);
+      const float x = std::round(vp.x + 0.5f * (vp.width - w));
+      rect(solid, x - pad, hudTop, x + w + pad, hudTop + large->lineHeight() + pad, Vec4f(0.05f, 0.06f, 0.08f, 0.7f));
+      glyphs(glyphsLarge, *large, dl.label, x, hudTop + 0.5f * pad + large->ascent(), dl.labelColour);
+      hudTop += large->lineHeight() + pad + margin;
+    }
+    block(dl.hud, vp.x + margin, hudTop);
+    block(dl.footer, vp.x + margin,
+          vp.y + vp.height - margin - 2 * pad - dl.footer.size() * small.lineHeight());
+    // Panel borders in a grid: a one-pixel dark line on the right and bottom edges.
+    if (vp.width < width) rect(solid, vp.x + vp.width - 1, vp.y, vp.x + vp.width, vp.y + vp.height, Vec4f(0, 0, 0, 1));
+    if (vp.height < height) rect(solid, vp.x, vp.y + vp.height - 1, vp.x + vp.width, vp.y + vp.height, Vec4f(0, 0, 0, 1));
+
+    glUseProgram(textProg);
+    const float frame[2] = {static_cast<float>(width), static_cast<float>(height)};
+    glUniform2fv(glGetUniformLocation(textProg, "uFrame"), 1, frame);
+    glUniform1i(glGetUniformLocation(textProg, "uAtlas"), 0);
+    glActiveTexture(GL_TEXTURE0);
+    glBindVertexArray(textVao);
+    glBindBuffer(GL_ARRAY_BUFFER, textVbo);
+    auto draw = [&](const std::vector<TextVertex>& v, GLuint atlas) {
+      if (v.empty()) return;
+      glBindTexture(GL_TEXTURE_2D, atlas);
+      glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(TextVertex)), v.data(), GL_STREAM_DRAW);
+      glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(v.size()));
+    };
+    draw(solid, atlases[px]);
+    draw(glyphsSmall, atlases[px]);
+    if (large) draw(glyphsLarge, atlases[static_cast<int>(std::lround(px * 1.5))]);
+    glBindVertexArray(0);
+  }
+};
+
+GlRenderer::GlRenderer(int width, int height, const RendererOptions& options)
+    : impl_(std::make_unique<Impl>()), width_(width), height_(height) {
+  if (width <= 0 || height <= 0) throw RenderError("frame size must be positive");
+  setenv("LP_NUM_THREADS", "2", 0);  // llvmpipe reads it when the first context is made
+  Impl& m = *impl_;
+  m.width = width;
+  m.height = height;
+  m.fontPath = options.fontPath.empty() ? defaultFontPath() : options.fontPath;
+  const int attribs[] = {OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 0, OSMESA_STENCIL_BITS, 0,
+                         OSMESA_PROFILE, OSMESA_CORE_PROFILE, OSMESA_CONTEXT_MAJOR_VERSION, 3,
+                         OSMESA_CONTEXT_MINOR_VERSION, 3, 0};
+  m.ctx = OSMesaCreateContextAttribs(attribs, nullptr);
+  if (!m.ctx) throw RenderError("OSMesa could not create a GL 3.3 core context (is libosmesa6 installed?)");
+  m.dummy.assign(4 * 4 * 4, 0);
+  m.makeCurrent();
+
+  GLint maxSamples = 1, maxSize = 0;
+  glGetIntegerv(GL_MAX_SAMPLES, &maxSamples);
+  glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &maxSize);
+  if (width > maxSize || height > maxSize)
+    throw RenderError("frame " + std::to_string(width) + "x" + std::to_string(height) + " exceeds the GL limit " +
+                      std::to_string(maxSize));
+  m.samples = std::clamp(options.samples, 1, std::max(1, maxSamples));
+  m.shadowSize = std::clamp(options.shadowSize, 0, static_cast<int>(maxSize));
+
+  auto renderbuffer = [&](GLenum format, int samples) {
+    GLuint rb;
+    glGenRenderbuffers(1, &rb);
+    glBindRenderbuffer(GL_RENDERBUFFER, rb);
+    if (samples > 0)
+      glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, format, width, height);
+    else
+      glRenderbufferStorage(GL_RENDERBUFFER, format, width, height);
+    return rb;
+  };
+  // Multisampled: the scene goes into renderbuffers and is resolved by a blit into the output.
+  // Not multisampled: the output buffer itself gets the depth buffer and the scene.
+  glGenFramebuffers(1, &m.outFbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, m.outFbo);
+  m.outColour = renderbuffer(GL_RGBA8, 0);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, m.outColour);
+  if (m.samples > 1) {
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw RenderError("GL: the output buffer is incomplete");
+    glGenFramebuffers(1, &m.msFbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, m.msFbo);
+    m.msColour = renderbuffer(GL_RGBA8, m.samples);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, m.msColour);
+  } else {
+    m.msFbo = m.outFbo;
+  }
+  m.msDepth = renderbuffer(GL_DEPTH_COMPONENT24, m.samples > 1 ? m.samples : 0);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, m.msDepth);
+  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw RenderError("GL: the frame buffer is incomplete");
+
+  glGenTextures(1, &m.shadowTex);
+  glBindTexture(GL_TEXTURE_2D, m.shadowTex);
+  const int side = std::max(m.shadowSize, 1);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, side, side, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
+  if (m.shadowSize > 0) {
+    glGenFramebuffers(1, &m.shadowFbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, m.shadowFbo);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, m.shadowTex, 0);
+    glDrawBuffer(GL_NONE);
+    glReadBuffer(GL_NONE);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      throw RenderError("GL: the shadow map buffer is incomplete");
+  }
+
+  auto meshVariant = [](int mode) { return "#version 330 core\n#define MODE " + std::to_string(mode) + "\n" + kMeshFS; };
+  m.meshProg = link(kMeshVS, meshVariant(0).c_str(), "mesh");
+  m.flatProg = link(kMeshVS, meshVariant(1).c_str(), "overlay");
+  m.depthProg = link(kMeshVS, meshVariant(2).c_str(), "shadow");
+  m.skyProg = link(kSkyVS, kSkyFS, "sky");
+  m.textProg = link(kTextVS, kTextFS, "text");
+
+  glGenBuffers(1, &m.instanceVbo);
+  glGenVertexArrays(1, &m.emptyVao);
+  for (int id = 0; id < kFirstCustomMesh; ++id) m.primitives.push_back(m.upload(primitiveMesh(id)));
+
+  glGenVertexArrays(1, &m.textVao);
+  glBindVertexArray(m.textVao);
+  glGenBuffers(1, &m.textVbo);
+  glBindBuffer(GL_ARRAY_BUFFER, m.textVbo);
+  glEnableVertexAttribArray(0);
+  glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, sizeof(TextVertex), reinterpret_cast<void*>(offsetof(TextVertex, x)));
+  glEnableVertexAttribArray(1);
+  glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, sizeof(TextVertex), reinterpret_cast<void*>(offsetof(TextVertex, s)));
+  glEnableVertexAttribArray(2);
+  glVertexAttribPointer(2, 4, GL_FLOAT, GL_FALSE, sizeof(TextVertex), reinterpret_cast<void*>(offsetof(TextVertex, r)));
+  glBindVertexArray(0);
+
+  try {
+    m.font(12);  // fail now, with the font's name, rather than at the first frame
+  } catch (const std::exception& e) {
+    throw RenderError(e.what());
+  }
+  if (const GLenum err = glGetError(); err != GL_NO_ERROR)
+    throw RenderError("GL error " + std::to_string(err) + " while setting up the renderer");
+}
+
+GlRenderer::~GlRenderer() {
+  if (!impl_ || !impl_->ctx) return;
+  // Unbind first: OSMesa frees the buffer it made for MakeCurrent only when it stops being
+  // current (else LeakSanitizer reports it). Destroying the context frees every GL object.
+  if (OSMesaGetCurrentContext() == impl_->ctx) OSMesaMakeCurrent(nullptr, nullptr, GL_UNSIGNED_BYTE, 0, 0);
+  OSMesaDestroyContext(impl_->ctx);
+}
+
+std::string GlRenderer::glInfo() const {
+  impl_->makeCurrent();
+  const auto* r = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  const auto* v = reinterpret_cast<const char*>(glGetString(GL_VERSION));
+  return std::string(r ? r : "?") + ", GL " + (v ? v : "?") + ", " + std::to_string(impl_->samples) + "x MSAA";
+}
+
+Image GlRenderer::render(const DrawList& list) { return render({View{&list, Viewport{0, 0, width_, height_}}}); }
+
+Image GlRenderer::render(const std::vector<View>& views) {
+  Image img;
+  render(views, img);
+  return img;
+}
+
+void GlRenderer::render(const std::vector<View>& views, Image& img) {
+  Impl& m = *impl_;
+  m.makeCurrent();
+  glDisable(GL_BLEND);
+  // Transparent black, so that after the resolve alpha says how much of a pixel the solids cover.
+  // (A whole-surface clear costs next to nothing in llvmpipe: it is done per tile while binning.)
+  glBindFramebuffer(GL_FRAMEBUFFER, m.msFbo);
+  glDisable(GL_SCISSOR_TEST);
+  glClearColor(0, 0, 0, 0);
+  glClear(GL_COLOR_BUFFER_BIT);
+  for (const View& v : views) m.drawView(*v.list, v.viewport);
+
+  if (m.samples > 1) {
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, m.msFbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, m.outFbo);
+    glBlitFramebuffer(0, 0, width_, height_, 0, 0, width_, height_, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, m.outFbo);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_SCISSOR_TEST);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_ONE_MINUS_DST_ALPHA, GL_ONE);  // the sky under what is there; alpha ends at 1
+  for (const View& v : views) m.drawSky(*v.list, v.viewport);
+  glViewport(0, 0, width_, height_);
+  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+  for (const View& v : views) m.drawText(*v.list, v.viewport);
+  glDisable(GL_BLEND);
+
+  const GLuint readFbo = m.outFbo;
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, readFbo);
+  if (img.width != width_ || img.height != height_) img = Image(width_, height_);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
+  if (const GLenum err = glGetError(); err != GL_NO_ERROR) throw RenderError("GL error " + std::to_string(err) + " while drawing");
+  // GL's rows run bottom-up: swap them in place.
+  const size_t stride = static_cast<size_t>(width_) * 4;
+  m.rowTemp.resize(stride);
+  for (int y = 0; y < height_ / 2; ++y) {
+    uint8_t* a = &img.rgba[static_cast<size_t>(y) * stride];
+    uint8_t* b = &img.rgba[static_cast<size_t>(height_ - 1 - y) * stride];
+    std::memcpy(m.rowTemp.data(), a, stride);
+    std::memcpy(a, b, stride);
+    std::memcpy(b, m.rowTemp.data(), stride);
+  }
+}
+
+std::vector<Viewport> gridLayout(int width, int height, int panels) {
+  const int cols = panels <= 1 ? 1 : 2, rows = panels <= 2 ? 1 : 2;
+  std::vector<Viewport> out;
+  for (int i = 0; i < panels; ++i) {
+    const int c = i % cols, r = i / cols;
+    const int x0 = width * c / cols, x1 = width * (c + 1) / cols;
+    const int y0 = height * r / rows, y1 = height * (r + 1) / rows;
+    out.push_back({x0, y0, x1 - x0, y1 - y0});
+  }
+  return out;
+}
+
+}  // namespace substep::render

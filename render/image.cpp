@@ -1,0 +1,121 @@
+#include "render/image.h"
+
+// Declarations only: libstb-dev compiles the implementations into libstb.
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+
+namespace substep::render {
+
+Image::Image(int w, int h, uint32_t fill) : width(w), height(h), rgba(static_cast<size_t>(w) * h * 4) {
+  const uint8_t c[4] = {static_cast<uint8_t>(fill >> 24), static_cast<uint8_t>(fill >> 16),
+                        static_cast<uint8_t>(fill >> 8), static_cast<uint8_t>(fill)};
+  for (size_t i = 0; i < rgba.size(); i += 4) std::memcpy(&rgba[i], c, 4);
+}
+
+void Image::blit(const Image& src, int x, int y) {
+  const int x0 = std::max(0, x), x1 = std::min(width, x + src.width);
+  if (x1 <= x0) return;
+  for (int row = std::max(0, y); row < std::min(height, y + src.height); ++row)
+    std::memcpy(pixel(x0, row), src.pixel(x0 - x, row - y), static_cast<size_t>(x1 - x0) * 4);
+}
+
+std::vector<uint8_t> encodePng(const Image& img) {
+  std::vector<uint8_t> out;
+  auto sink = [](void* ctx, void* data, int size) {
+    auto* v = static_cast<std::vector<uint8_t>*>(ctx);
+    v->insert(v->end(), static_cast<uint8_t*>(data), static_cast<uint8_t*>(data) + size);
+  };
+  if (!stbi_write_png_to_func(sink, &out, img.width, img.height, 4, img.rgba.data(), img.width * 4))
+    throw std::runtime_error("PNG encoding failed (" + std::to_string(img.width) + "x" + std::to_string(img.height) + ")");
+  return out;
+}
+
+Image decodePng(const std::vector<uint8_t>& bytes) {
+  int w = 0, h = 0, n = 0;
+  stbi_uc* data = stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &w, &h, &n, 4);
+  if (!data) throw std::runtime_error(std::string("not a readable PNG: ") + stbi_failure_reason());
+  Image img;
+  img.width = w;
+  img.height = h;
+  img.rgba.assign(data, data + static_cast<size_t>(w) * h * 4);
+  stbi_image_free(data);
+  return img;
+}
+
+Image readPng(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open: " + std::strerror(errno));
+  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), {});
+  try {
+    return decodePng(bytes);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
+}
+
+void writePng(const std::string& path, const Image& img) {
+  const std::vector<uint8_t> bytes = encodePng(img);
+  const std::string temp = path + ".part" + std::to_string(getpid());
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error(path + ": cannot create " + temp + ": " + std::strerror(errno));
+    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    out.close();
+    if (!out) {
+      std::remove(temp.c_str());
+      throw std::runtime_error(path + ": write failed (disk full?)");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(temp, path, ec);
+  if (ec) {
+    std::remove(temp.c_str());
+    throw std::runtime_error(path + ": cannot rename " + temp + " into place: " + ec.message());
+  }
+}
+
+std::string CompareResult::summary() const {
+  if (!sameSize) return "sizes differ";
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%lld pixels differ (%.4f%%), largest channel difference %d", differing, share * 100,
+                maxDelta);
+  return buf;
+}
+
+CompareResult compareImages(const Image& expected, const Image& actual, const CompareOptions& o) {
+  CompareResult r;
+  r.sameSize = expected.width == actual.width && expected.height == actual.height && !expected.empty();
+  if (!r.sameSize) return r;
+  r.diff = Image(expected.width, expected.height);
+  for (size_t i = 0; i < expected.rgba.size(); i += 4) {
+    int d = 0;
+    for (int c = 0; c < 4; ++c) d = std::max(d, std::abs(int(expected.rgba[i + c]) - int(actual.rgba[i + c])));
+    r.maxDelta = std::max(r.maxDelta, d);
+    uint8_t* out = &r.diff.rgba[i];
+    if (d > o.threshold) {
+      ++r.differing;
+      out[0] = 255, out[1] = 0, out[2] = 0;
+    } else {
+      // The expected image at a third of its brightness, so red stands out and the scene is still recognisable.
+      const int grey = (expected.rgba[i] + expected.rgba[i + 1] + expected.rgba[i + 2]) / 9;
+      out[0] = out[1] = out[2] = static_cast<uint8_t>(grey);
+    }
+    out[3] = 255;
+  }
+  r.share = static_cast<double>(r.differing) / (static_cast<double>(expected.width) * expected.height);
+  r.match = r.share <= o.maxShare;
+  return r;
+}
+
+}  // namespace substep::render

@@ -1,0 +1,50 @@
+// RGBA images, PNG files (stb_image / stb_image_write) and the tolerant comparison the snapshot
+// tests use.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace substep::render {
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba;  // row 0 at the top, 4 bytes a pixel
+
+  Image() = default;
+  Image(int w, int h, uint32_t fill = 0x000000ff);  // fill as 0xRRGGBBAA
+  uint8_t* pixel(int x, int y) { return &rgba[(static_cast<size_t>(y) * width + x) * 4]; }
+  const uint8_t* pixel(int x, int y) const { return &rgba[(static_cast<size_t>(y) * width + x) * 4]; }
+  bool empty() const { return width == 0 || height == 0; }
+  // Copies `src` with its top-left corner at (x, y), clipped.
+  void blit(const Image& src, int x, int y);
+};
+
+std::vector<uint8_t> encodePng(const Image& img);
+Image decodePng(const std::vector<uint8_t>& bytes);   // throws std::runtime_error
+Image readPng(const std::string& path);               // throws std::runtime_error naming the file
+// Writes under a temporary name in the same folder and renames it into place; throws
+// std::runtime_error naming the file when it cannot.
+void writePng(const std::string& path, const Image& img);
+
+// Tolerant comparison: a pixel differs when any channel differs by more than `threshold`
+// (0-255); the images match when the share of differing pixels is at most `maxShare`.
+struct CompareOptions {
+  int threshold = 24;
+  double maxShare = 0.0002;
+};
+
+struct CompareResult {
+  bool sameSize = false;
+  long long differing = 0;   // pixels over the threshold
+  double share = 0;          // differing / all pixels
+  int maxDelta = 0;          // largest channel difference anywhere
+  bool match = false;
+  Image diff;                // the expected image, faded, with differing pixels in red (sizes equal only)
+  std::string summary() const;
+};
+
+CompareResult compareImages(const Image& expected, const Image& actual, const CompareOptions& o = {});
+
+}  // namespace substep::render

@@ -1,0 +1,458 @@
+#include "render/scene_builder.h"
+
+#include "physics/constraints/joints.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+namespace substep::render {
+
+namespace {
+
+constexpr double kDegree = 3.14159265358979323846 / 180.0;
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+Vec3f hsv(float h, float s, float v) {
+  h = h - std::floor(h);
+  const float c = v * s, x = c * (1 - std::abs(std::fmod(h * 6, 2.0f) - 1)), m = v - c;
+  Vec3f rgb;
+  switch (static_cast<int>(h * 6) % 6) {
+    case 0: rgb = {c, x, 0}; break;
+    case 1: rgb = {x, c, 0}; break;
+    case 2: rgb = {0, c, x}; break;
+    case 3: rgb = {0, x, c}; break;
+    case 4: rgb = {x, 0, c}; break;
+    default: rgb = {c, 0, x}; break;
+  }
+  return rgb + Vec3f::Constant(m);
+}
+
+// The rotation taking +Y to the unit vector d.
+Quatf fromY(const Vec3f& d) { return Quatf::FromTwoVectors(Vec3f::UnitY(), d); }
+
+// A thin cylinder from a to b (an arm, a normal, an axis).
+Instance segment(const Vec3f& a, const Vec3f& b, float radius, const Vec3f& colour) {
+  Instance in;
+  in.mesh = kCylinderMesh;
+  const Vec3f d = b - a;
+  const float len = d.norm();
+  in.position = 0.5f * (a + b);
+  in.rotation = len > 1e-9f ? fromY(d / len) : Quatf::Identity();
+  in.scale = Vec3f(radius, 0.5f * len, radius);
+  in.colour = Vec4f(colour.x(), colour.y(), colour.z(), 1.0f);
+  in.flags = kNoShadow;
+  return in;
+}
+
+Instance dot(const Vec3f& p, float radius, const Vec3f& colour) {
+  Instance in;
+  in.mesh = kSphereMesh;
+  in.position = p;
+  in.scale = Vec3f::Constant(radius);
+  in.colour = Vec4f(colour.x(), colour.y(), colour.z(), 1.0f);
+  in.flags = kNoShadow;
+  return in;
+}
+
+// Bounds of the bodies that cast shadows worth resolving: the dynamic ones, and static ones no
+// bigger than them (a ground box 40 m wide would spread the shadow map thin).
+void shadowBounds(const Model& model, const State& state, Vec3f& centre, float& radius) {
+  Eigen::AlignedBox3d box;
+  for (size_t i = 0; i < model.bodies.size(); ++i) {
+    const Body& b = model.bodies[i];
+    if (b.isStatic) continue;
+    const double r = b.shape.boundingRadius();
+    box.extend(state.bodies[i].x - Vec3::Constant(r));
+    box.extend(state.bodies[i].x + Vec3::Constant(r));
+  }
+  const double dynR = box.isEmpty() ? 1.0 : 0.5 * box.diagonal().norm();
+  for (size_t i = 0; i < model.bodies.size(); ++i) {
+    const Body& b = model.bodies[i];
+    if (!b.isStatic || b.shape.type == ShapeType::Plane) continue;
+    const double r = b.shape.boundingRadius();
+    if (r > 2 * dynR) continue;
+    box.extend(state.bodies[i].x - Vec3::Constant(r));
+    box.extend(state.bodies[i].x + Vec3::Constant(r));
+  }
+  if (box.isEmpty()) {
+    centre = Vec3f::Zero();
+    radius = 10;
+    return;
+  }
+  centre = box.center().cast<float>();
+  radius = std::max(0.5f, static_cast<float>(0.5 * box.diagonal().norm()));
+}
+
+}  // namespace
+
+// ---- camera ----
+
+Mat4f Camera::view() const {
+  const Vec3f f = (target - eye).normalized();
+  Vec3f s = f.cross(up);
+  if (s.norm() < 1e-6f) s = f.cross(Vec3f::UnitZ());  // looking straight down
+  s.normalize();
+  const Vec3f u = s.cross(f);
+  Mat4f m = Mat4f::Identity();
+  m.block<1, 3>(0, 0) = s.transpose();
+  m.block<1, 3>(1, 0) = u.transpose();
+  m.block<1, 3>(2, 0) = -f.transpose();
+  m(0, 3) = -s.dot(eye);
+  m(1, 3) = -u.dot(eye);
+  m(2, 3) = f.dot(eye);
+  return m;
+}
+
+Mat4f Camera::projection(float aspect) const {
+  float halfTan = std::tan(0.5f * fovY * static_cast<float>(kDegree));
+  if (aspect < fitAspect) halfTan *= fitAspect / aspect;  // same horizontal extent as the preset's view
+  const float t = 1.0f / halfTan;
+  Mat4f m = Mat4f::Zero();
+  m(0, 0) = t / aspect;
+  m(1, 1) = t;
+  m(2, 2) = (zFar + zNear) / (zNear - zFar);
+  m(2, 3) = 2 * zFar * zNear / (zNear - zFar);
+  m(3, 2) = -1;
+  return m;
+}
+
+CameraPreset fittedCamera(const Model& model, const State& state) {
+  Eigen::AlignedBox3d box;
+  for (size_t i = 0; i < model.bodies.size(); ++i) {
+    if (model.bodies[i].isStatic) continue;
+    const double r = model.bodies[i].shape.boundingRadius();
+    box.extend(state.bodies[i].x - Vec3::Constant(r));
+    box.extend(state.bodies[i].x + Vec3::Constant(r));
+  }
+  CameraPreset c;
+  c.name = "fitted";
+  c.yaw = 30;
+  c.pitch = 20;
+  if (box.isEmpty()) return c;
+  c.target = box.center();
+  const double r = std::max(0.5, 0.5 * box.diagonal().norm());
+  c.distance = 1.15 * r / std::sin(0.5 * c.fovY * kDegree);
+  return c;
+}
+
+CameraPreset chooseCamera(const Scene& scene, const CameraOptions& o) {
+  CameraPreset c;
+  if (!o.preset.empty()) {
+    auto it = std::find_if(scene.cameras.begin(), scene.cameras.end(),
+                           [&](const CameraPreset& p) { return p.name == o.preset; });
+    if (it == scene.cameras.end()) {
+      std::string names;
+      for (const CameraPreset& p : scene.cameras) names += (names.empty() ? "" : ", ") + p.name;
+      throw std::invalid_argument("--camera: " + scene.file + " has no camera \"" + o.preset + "\" (it has: " +
+                                  (names.empty() ? std::string("none; leave --camera out for a fitted view") : names) +
+                                  ")");
+    }
+    c = *it;
+  } else if (!scene.cameras.empty()) {
+    c = scene.cameras.front();
+  } else {
+    c = fittedCamera(scene.model, scene.initial);
+  }
+  if (o.yaw) c.yaw = *o.yaw;
+  if (o.pitch) c.pitch = *o.pitch;
+  if (o.distance) c.distance = *o.distance;
+  if (o.fov) c.fovY = *o.fov;
+  if (o.target) c.target = *o.target;
+  if (o.follow) {
+    if (!o.follow->empty() && scene.model.bodyIndex(*o.follow) < 0)
+      throw std::invalid_argument("--follow: " + scene.file + " has no body \"" + *o.follow + "\"");
+    c.follow = *o.follow;
+  }
+  return c;
+}
+
+Camera placeCamera(const CameraPreset& p, const Model& model, const State& state, double orbit) {
+  Camera cam;
+  Vec3 target = p.target;
+  if (!p.follow.empty()) {
+    const int b = model.bodyIndex(p.follow);
+    if (b >= 0) target = state.bodies[static_cast<size_t>(b)].x;
+  }
+  // Yaw about +Y with 0 looking along -Z: the eye sits on +Z, turned by yaw, raised by pitch.
+  const double yaw = (p.yaw + orbit * state.time) * kDegree, pitch = p.pitch * kDegree;
+  const Vec3 offset(std::cos(pitch) * std::sin(yaw), std::sin(pitch), std::cos(pitch) * std::cos(yaw));
+  cam.target = target.cast<float>();
+  cam.eye = (target + p.distance * offset).cast<float>();
+  cam.fovY = static_cast<float>(p.fovY);
+  cam.zNear = static_cast<float>(std::max(0.01, p.distance * 0.01));
+  cam.zFar = static_cast<float>(p.distance * 20 + 200);
+  return cam;
+}
+
+// ---- colours ----
+
+Vec3f bodyColour(int index) { return hsv(0.08f + 0.618034f * static_cast<float>(index), 0.55f, 0.92f); }
+
+Vec3f groupColour(int group, int member) {
+  // The group's hue; members differ in brightness so neighbours in a ragdoll stay apart.
+  const float shade = 0.72f + 0.26f * (0.618034f * static_cast<float>(member) - std::floor(0.618034f * static_cast<float>(member)));
+  return hsv(0.08f + 0.618034f * static_cast<float>(group), 0.6f, shade);
+}
+
+Vec3f rampColour(double t) {
+  static const Vec3f stops[] = {{0.15f, 0.3f, 0.95f}, {0.1f, 0.8f, 0.9f}, {0.2f, 0.85f, 0.25f},
+                                {0.95f, 0.85f, 0.1f}, {0.95f, 0.15f, 0.1f}};
+  if (!(t > 0)) return stops[0];  // also NaN
+  if (t >= 1) return stops[4];
+  const double x = t * 4;
+  const int k = static_cast<int>(x);
+  const float f = static_cast<float>(x - k);
+  return (1 - f) * stops[k] + f * stops[k + 1];
+}
+
+Vec3f staticColour() { return {0.56f, 0.57f, 0.6f}; }
+
+std::optional<ColourMode> parseColourMode(const std::string& s) {
+  if (s == "auto") return ColourMode::Auto;
+  if (s == "body") return ColourMode::Body;
+  if (s == "group") return ColourMode::Group;
+  if (s == "speed") return ColourMode::Speed;
+  if (s == "activity" || s == "sleep") return ColourMode::Activity;
+  if (s == "error") return ColourMode::Error;
+  return std::nullopt;
+}
+
+const char* colourModeName(ColourMode m) {
+  switch (m) {
+    case ColourMode::Auto: return "auto";
+    case ColourMode::Body: return "body";
+    case ColourMode::Group: return "group";
+    case ColourMode::Speed: return "speed";
+    case ColourMode::Activity: return "activity";
+    case ColourMode::Error: return "error";
+  }
+  return "?";
+}
+
+// ---- text ----
+
+std::string sceneLine(const Scene& scene) {
+  return scene.model.name + ": " + std::to_string(scene.model.dynamicCount()) + " bodies, " +
+         std::to_string(scene.model.joints.size()) + " joints";
+}
+
+std::string settingsLine(const SolverSettings& s) {
+  std::string o = std::string(algorithmName(s.algorithm)) + " " + algorithmTitle(s.algorithm) + "  ";
+  const double inv = 1.0 / s.dt;
+  o += std::abs(inv - std::round(inv)) < 1e-9 ? "h=1/" + std::to_string(std::llround(inv)) : fmt("h=%g", s.dt);
+  // n and m as the report names them: sub-steps and (micro-)iterations; A1/A2 take one step.
+  o += "  n=" + std::to_string(subSteps(s.algorithm) ? s.substeps : 1);
+  if (s.algorithm != Algorithm::A1) o += "  m=" + std::to_string(s.iterations);
+  if (subSteps(s.algorithm))
+    o += fmt("  κ=%g", s.kappa) + fmt("  τ=%g", s.tau);
+  else if (s.algorithm == Algorithm::A2)
+    o += fmt("  ω=%g", s.omega);
+  if (s.warmStart) o += "  warm";
+  return o;
+}
+
+std::string shortSettingsLine(const SolverSettings& s) {
+  std::string o = algorithmName(s.algorithm);
+  switch (s.algorithm) {
+    case Algorithm::A1: break;
+    case Algorithm::A2:
+      o += " m=" + std::to_string(s.iterations);
+      if (s.omega != 1.0) o += fmt(" ω=%g", s.omega);
+      break;
+    default:
+      o += " n=" + std::to_string(s.substeps) + " m=" + std::to_string(s.iterations) + fmt(" κ=%g", s.kappa) +
+           fmt(" τ=%g", s.tau);
+      break;
+  }
+  if (std::abs(s.dt - 1.0 / 60) > 1e-12) o += fmt(" h=%g", s.dt);
+  if (s.warmStart) o += " warm";
+  return o;
+}
+
+// ---- builder ----
+
+std::vector<double> bodyErrors(const Model& model, const State& state, const std::vector<Manifold>* manifolds) {
+  std::vector<double> err(model.bodies.size(), 0.0);
+  if (manifolds)
+    for (const Manifold& m : *manifolds) {
+      const Pose A = state.bodies[static_cast<size_t>(m.a)].pose(), B = state.bodies[static_cast<size_t>(m.b)].pose();
+      for (int k = 0; k < m.count; ++k) {
+        const ManifoldPoint& p = m.points[k];
+        const double pen = -(A.apply(p.localA) - B.apply(p.localB)).dot(B.rotate(p.localN));
+        err[static_cast<size_t>(m.a)] = std::max(err[static_cast<size_t>(m.a)], pen);
+        err[static_cast<size_t>(m.b)] = std::max(err[static_cast<size_t>(m.b)], pen);
+      }
+    }
+  for (const Joint& j : model.joints) {
+    const double e = jointError(j, state.bodies[static_cast<size_t>(j.bodyA)].pose(),
+                                state.bodies[static_cast<size_t>(j.bodyB)].pose());
+    err[static_cast<size_t>(j.bodyA)] = std::max(err[static_cast<size_t>(j.bodyA)], e);
+    err[static_cast<size_t>(j.bodyB)] = std::max(err[static_cast<size_t>(j.bodyB)], e);
+  }
+  return err;
+}
+
+DrawList buildDrawList(const Model& model, const State& state, const std::vector<Manifold>* manifolds,
+                       const Camera& camera, const ViewOptions& view, const HudInfo& hud) {
+  DrawList dl;
+  dl.camera = camera;
+  shadowBounds(model, state, dl.boundsCentre, dl.boundsRadius);
+
+  ColourMode mode = view.colour;
+  if (mode == ColourMode::Auto) {
+    // Groups tell ragdolls or chains apart; one group (a single stack) would paint everything alike.
+    std::set<int> groups;
+    for (const Body& b : model.bodies)
+      if (!b.isStatic && b.group >= 0) groups.insert(b.group);
+    mode = groups.size() >= 2 ? ColourMode::Group : ColourMode::Body;
+  }
+  std::vector<double> errors;
+  if (mode == ColourMode::Error) errors = bodyErrors(model, state, manifolds);
+
+  std::map<int, int> membersSoFar;  // per group, for shading members apart
+  std::vector<int> highlighted(model.bodies.size(), 0);
+  for (const std::string& name : view.highlight) {
+    const int b = model.bodyIndex(name);
+    if (b >= 0) highlighted[static_cast<size_t>(b)] = 1;
+  }
+
+  int dynamicIndex = 0;
+  for (size_t i = 0; i < model.bodies.size(); ++i) {
+    const Body& body = model.bodies[i];
+    const BodyState& bs = state.bodies[i];
+    const Shape& sh = body.shape;
+    Instance in;
+    in.body = static_cast<int>(i);
+    in.position = bs.x.cast<float>();
+    in.rotation = bs.q.cast<float>().normalized();
+    switch (sh.type) {
+      case ShapeType::Box:
+        in.mesh = kBoxMesh;
+        in.scale = sh.halfExtents.cast<float>();
+        break;
+      case ShapeType::Sphere:
+        in.mesh = kSphereMesh;
+        in.scale = Vec3f::Constant(static_cast<float>(sh.radius));
+        break;
+      case ShapeType::Capsule:
+        in.mesh = kCapsuleMesh;
+        in.scale = Vec3f::Constant(static_cast<float>(sh.radius));
+        in.stretch = static_cast<float>(sh.halfHeight);
+        break;
+      case ShapeType::Cylinder:
+        in.mesh = kCylinderMesh;
+        in.scale = Vec3f(static_cast<float>(sh.radius), static_cast<float>(sh.halfHeight), static_cast<float>(sh.radius));
+        break;
+      case ShapeType::ConvexMesh:
+      case ShapeType::TriangleMesh: {
+        if (!sh.mesh) continue;
+        auto it = std::find(dl.meshes.begin(), dl.meshes.end(), sh.mesh);
+        in.mesh = kFirstCustomMesh + static_cast<int>(it - dl.meshes.begin());
+        if (it == dl.meshes.end()) dl.meshes.push_back(sh.mesh);
+        break;
+      }
+      case ShapeType::Plane: {
+        // A square around the point of the plane nearest the camera's target, big enough to
+        // reach the horizon; the grid and the fog make its edge invisible.
+        const Vec3f n = sh.normal.cast<float>().normalized();
+        const Vec3f onPlane = camera.target - (n.dot(camera.target) - static_cast<float>(sh.offset)) * n;
+        in.mesh = kQuadMesh;
+        in.position = onPlane;
+        in.rotation = fromY(n);
+        const float size = std::max(200.0f, 4 * (camera.eye - camera.target).norm());
+        in.scale = Vec3f(size, 1, size);
+        in.flags |= kNoShadow;
+        break;
+      }
+    }
+    Vec3f colour;
+    if (body.isStatic) {
+      colour = staticColour();
+      in.flags |= kGrid;
+    } else {
+      switch (mode) {
+        case ColourMode::Group:
+          colour = body.group >= 0 ? groupColour(body.group, membersSoFar[body.group]++) : bodyColour(dynamicIndex);
+          break;
+        case ColourMode::Speed: colour = rampColour(bs.v.norm() / view.speedScale); break;
+        case ColourMode::Activity: {
+          const bool rest = bs.v.norm() < view.restSpeed && bs.w.norm() < view.restSpeed;
+          colour = rest ? Vec3f(0.45f, 0.52f, 0.66f) : Vec3f(1.0f, 0.55f, 0.12f);
+          break;
+        }
+        case ColourMode::Error: colour = rampColour(0.5 + 0.5 * std::min(1.0, errors[i] / view.errorScale)); break;
+        default: colour = bodyColour(dynamicIndex); break;
+      }
+      ++dynamicIndex;
+    }
+    in.colour = Vec4f(colour.x(), colour.y(), colour.z(), 1.0f);
+    in.highlight = highlighted[i] ? 1.0f : 0.0f;
+    dl.solids.push_back(in);
+  }
+
+  // Overlays are sized with the view so they read the same from near and far.
+  const float viewSize = (camera.eye - camera.target).norm() * std::tan(0.5f * camera.fovY * static_cast<float>(kDegree));
+  const float dotR = 0.012f * viewSize, lineR = 0.0035f * viewSize, normalLen = 0.08f * viewSize;
+  if (view.contacts && manifolds) {
+    for (const Manifold& m : *manifolds) {
+      const Pose A = state.bodies[static_cast<size_t>(m.a)].pose(), B = state.bodies[static_cast<size_t>(m.b)].pose();
+      for (int k = 0; k < m.count; ++k) {
+        const ManifoldPoint& p = m.points[k];
+        const Vec3 pa = A.apply(p.localA), pb = B.apply(p.localB), n = B.rotate(p.localN);
+        const Vec3f mid = (0.5 * (pa + pb)).cast<float>();
+        const bool touching = (pa - pb).dot(n) <= 0;  // speculative points are still apart
+        dl.overlays.push_back(dot(mid, dotR, touching ? Vec3f(1.0f, 0.9f, 0.1f) : Vec3f(0.6f, 0.6f, 0.6f)));
+        // The normal points from B into A, as the solver uses it.
+        dl.overlays.push_back(segment(mid, mid + normalLen * n.cast<float>(), lineR, Vec3f(0.1f, 0.95f, 1.0f)));
+      }
+    }
+  }
+  if (view.joints) {
+    for (const Joint& j : model.joints) {
+      const BodyState& a = state.bodies[static_cast<size_t>(j.bodyA)];
+      const BodyState& b = state.bodies[static_cast<size_t>(j.bodyB)];
+      const Vec3f wa = a.pose().apply(j.localAnchorA).cast<float>(), wb = b.pose().apply(j.localAnchorB).cast<float>();
+      const Vec3f armColour(1.0f, 0.35f, 0.85f);
+      dl.overlays.push_back(segment(a.x.cast<float>(), wa, lineR, armColour));
+      dl.overlays.push_back(segment(b.x.cast<float>(), wb, lineR, armColour));
+      dl.overlays.push_back(dot(wa, dotR, Vec3f(1.0f, 0.2f, 0.7f)));
+      if ((wa - wb).norm() > 0.5f * dotR) dl.overlays.push_back(dot(wb, dotR, Vec3f(1.0f, 0.6f, 0.9f)));
+      if (j.type == JointType::Hinge || j.type == JointType::ConeTwist || j.type == JointType::Motor) {
+        const Vec3f axis = (a.q * j.localAxisA).cast<float>().normalized();
+        dl.overlays.push_back(segment(wa - normalLen * axis, wa + normalLen * axis, lineR, Vec3f(1.0f, 1.0f, 1.0f)));
+      }
+    }
+  }
+
+  if (view.hud) {
+    const Vec4f white(1, 1, 1, 1), grey(0.85f, 0.88f, 0.92f, 1), red(1.0f, 0.35f, 0.3f, 1);
+    if (!hud.scene.empty()) dl.hud.push_back({hud.scene, white});
+    if (!hud.settings.empty()) dl.hud.push_back({hud.settings, grey});
+    std::string line = fmt("t = %.3f s", hud.time);
+    if (std::isfinite(hud.stepMs)) line += fmt("    step %.2f ms", hud.stepMs);
+    dl.hud.push_back({line, grey});
+    if (!hud.status.empty()) dl.hud.push_back({hud.status, red});
+    std::string legend;
+    switch (mode) {
+      case ColourMode::Speed: legend = fmt("colour: speed, blue 0 to red %g m/s", view.speedScale); break;
+      case ColourMode::Activity: legend = fmt("colour: orange moving, blue-grey at rest (< %g m/s)", view.restSpeed); break;
+      case ColourMode::Error: legend = fmt("colour: constraint error, green 0 to red %g mm", view.errorScale * 1e3); break;
+      default: break;
+    }
+    if (!legend.empty()) dl.footer.push_back({legend, grey});
+    if (view.contacts) dl.footer.push_back({"contacts: points yellow, normals cyan", grey});
+    if (view.joints) dl.footer.push_back({"joints: anchors and arms magenta, axes white", grey});
+  }
+  return dl;
+}
+
+}  // namespace substep::render

@@ -1,0 +1,173 @@
+#include "render/video.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+extern char** environ;
+
+namespace substep::render {
+
+std::string findProgram(const std::string& name) {
+  auto executable = [](const std::string& p) {
+    struct stat st;
+    return stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode) && access(p.c_str(), X_OK) == 0;
+  };
+  if (name.find('/') != std::string::npos) return executable(name) ? name : "";
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "");
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    const std::string p = (dir.empty() ? "." : dir) + "/" + name;
+    if (executable(p)) return p;
+  }
+  return "";
+}
+
+std::string findFfmpeg() {
+  if (const char* env = std::getenv("SUBSTEP_FFMPEG"); env && *env) return findProgram(env);
+  return findProgram("ffmpeg");
+}
+
+VideoEncoder::VideoEncoder(const std::string& ffmpeg, const std::string& path, int width, int height,
+                           const VideoOptions& o)
+    : path_(path), width_(width), height_(height) {
+  if (width % 2 || height % 2)
+    throw VideoError("H.264 in yuv420p needs an even width and height, got " + std::to_string(width) + "x" +
+                     std::to_string(height));
+  // ffmpeg's messages go to a log we show when it fails.
+  char logName[] = "/tmp/substep-ffmpeg-XXXXXX";
+  const int logFd = mkstemp(logName);
+  if (logFd < 0) throw VideoError(std::string("cannot create a log file for ffmpeg: ") + std::strerror(errno));
+  log_ = logName;
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0) {
+    close(logFd);
+    throw VideoError(std::string("cannot create a pipe to ffmpeg: ") + std::strerror(errno));
+  }
+  const std::vector<std::string> args = {
+      ffmpeg, "-hide_banner", "-loglevel", "error", "-y",
+      "-f", "rawvideo", "-pix_fmt", "rgba", "-s", std::to_string(width) + "x" + std::to_string(height),
+      "-framerate", std::to_string(o.fps), "-i", "-",
+      "-an", "-c:v", "libx264", "-preset", o.preset, "-crf", std::to_string(o.crf), "-pix_fmt", "yuv420p",
+      "-movflags", "+faststart", "-f", "mp4", path};
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, fds[0], 0);
+  posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_adddup2(&fa, logFd, 2);
+  const int rc = posix_spawn(&pid_, ffmpeg.c_str(), &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  close(fds[0]);
+  close(logFd);
+  if (rc != 0) {
+    close(fds[1]);
+    std::remove(log_.c_str());
+    pid_ = -1;
+    throw VideoError("cannot start " + ffmpeg + ": " + std::strerror(rc));
+  }
+  fd_ = fds[1];
+  // A dead ffmpeg must give us EPIPE, not kill us with SIGPIPE.
+  struct sigaction ign {};
+  ign.sa_handler = SIG_IGN;
+  pipeIgnored_ = sigaction(SIGPIPE, &ign, &oldPipe_) == 0;
+}
+
+VideoEncoder::~VideoEncoder() {
+  if (!finished_) {
+    stop();
+    std::remove(path_.c_str());
+  }
+  if (!log_.empty()) std::remove(log_.c_str());
+  if (pipeIgnored_) sigaction(SIGPIPE, &oldPipe_, nullptr);
+}
+
+void VideoEncoder::stop() {
+  if (fd_ >= 0) close(fd_);
+  fd_ = -1;
+  if (pid_ > 0) {
+    kill(pid_, SIGTERM);
+    int st;
+    while (waitpid(pid_, &st, 0) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+  }
+}
+
+std::string VideoEncoder::logTail() const {
+  std::ifstream in(log_);
+  std::string line, all;
+  std::vector<std::string> lines;
+  while (std::getline(in, line))
+    if (!line.empty()) lines.push_back(line);
+  for (size_t i = lines.size() > 6 ? lines.size() - 6 : 0; i < lines.size(); ++i) all += "\n  ffmpeg: " + lines[i];
+  return all;
+}
+
+void VideoEncoder::fail(const std::string& what) {
+  // Collect ffmpeg's exit status and message before cleaning up.
+  if (fd_ >= 0) close(fd_);
+  fd_ = -1;
+  std::string status;
+  if (pid_ > 0) {
+    int st = 0;
+    while (waitpid(pid_, &st, 0) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+    if (WIFEXITED(st))
+      status = " (ffmpeg exited with status " + std::to_string(WEXITSTATUS(st)) + ")";
+    else if (WIFSIGNALED(st))
+      status = " (ffmpeg was killed by signal " + std::to_string(WTERMSIG(st)) + ")";
+  }
+  throw VideoError(what + status + logTail());
+}
+
+void VideoEncoder::write(const Image& frame) {
+  if (frame.width != width_ || frame.height != height_)
+    throw VideoError("frame of " + std::to_string(frame.width) + "x" + std::to_string(frame.height) + " sent to a " +
+                     std::to_string(width_) + "x" + std::to_string(height_) + " video");
+  if (fd_ < 0) throw VideoError("the video is already closed");
+  const uint8_t* p = frame.rgba.data();
+  size_t left = frame.rgba.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd_, p, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail("ffmpeg stopped taking frames for " + path_ + ": " + std::strerror(errno));
+    }
+    p += n;
+    left -= static_cast<size_t>(n);
+  }
+}
+
+void VideoEncoder::finish() {
+  if (pid_ <= 0) throw VideoError("the video " + path_ + " was not completed");
+  if (fd_ >= 0) close(fd_);
+  fd_ = -1;
+  int st = 0;
+  while (waitpid(pid_, &st, 0) < 0 && errno == EINTR) {
+  }
+  pid_ = -1;
+  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+    const std::string status = WIFEXITED(st) ? "exited with status " + std::to_string(WEXITSTATUS(st))
+                                             : "was killed by signal " + std::to_string(WTERMSIG(st));
+    throw VideoError("ffmpeg " + status + " while writing " + path_ + logTail());
+  }
+  finished_ = true;
+}
+
+}  // namespace substep::render

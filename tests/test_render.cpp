@@ -1,0 +1,583 @@
+// The render library without a GL context: meshes, the scene builder's draw list, cameras,
+// colours, text layout, comparison specs, images and their tolerant comparison, the video pipe.
+// (Pixels drawn by OSMesa are checked in test_snapshots.)
+#include "physics/scene_file.h"
+#include "physics/world.h"
+#include "render/compare.h"
+#include "render/gl_renderer.h"
+#include "render/image.h"
+#include "render/meshes.h"
+#include "render/scene_builder.h"
+#include "render/text.h"
+#include "render/video.h"
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+namespace fs = std::filesystem;
+using namespace substep;
+using namespace substep::render;
+
+namespace {
+
+Scene scene(const std::string& name) { return loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + name); }
+
+fs::path scratch(const std::string& name) {
+  fs::path d = fs::path(SUBSTEP_BINARY_DIR) / "test_render_out" /
+               ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  fs::create_directories(d);
+  return d / name;
+}
+
+Camera defaultCamera(const Scene& s) { return placeCamera(chooseCamera(s, {}), s.model, s.initial); }
+
+// Where a world point lands in normalised device coordinates.
+Eigen::Vector3f project(const Camera& c, float aspect, const Vec3f& p) {
+  const Eigen::Vector4f h = c.projection(aspect) * c.view() * Eigen::Vector4f(p.x(), p.y(), p.z(), 1);
+  return h.head<3>() / h.w();
+}
+
+}  // namespace
+
+// ---- meshes ----
+
+// Every triangle of every primitive is wound counter-clockwise seen from outside: its geometric
+// normal agrees with its vertex normals. (Back faces are culled, so a wrong winding would hide faces.)
+TEST(Meshes, PrimitivesAreClosedOutwardWoundAndUnitSized) {
+  for (int id = 0; id < kFirstCustomMesh; ++id) {
+    const MeshData m = primitiveMesh(id);
+    ASSERT_EQ(m.indices.size() % 3, 0u) << id;
+    ASSERT_FALSE(m.indices.empty()) << id;
+    for (size_t t = 0; t < m.indices.size(); t += 3) {
+      const MeshVertex& a = m.vertices[m.indices[t]];
+      const MeshVertex& b = m.vertices[m.indices[t + 1]];
+      const MeshVertex& c = m.vertices[m.indices[t + 2]];
+      // Positions as the capsule's stretch would place them, so its side quads are not degenerate.
+      auto pos = [](const MeshVertex& v) { return Vec3f(v.position[0], v.position[1] + v.capSign, v.position[2]); };
+      const Vec3f g = (pos(b) - pos(a)).cross(pos(c) - pos(a));
+      if (g.norm() < 1e-7f) continue;  // the poles of a UV sphere
+      const Vec3f n = Vec3f(a.normal[0], a.normal[1], a.normal[2]) + Vec3f(b.normal[0], b.normal[1], b.normal[2]) +
+                      Vec3f(c.normal[0], c.normal[1], c.normal[2]);
+      EXPECT_GT(g.dot(n), 0) << "mesh " << id << " triangle " << t / 3;
+    }
+    for (const MeshVertex& v : m.vertices) {
+      const Vec3f p(v.position[0], v.position[1], v.position[2]);
+      EXPECT_LE(p.cwiseAbs().maxCoeff(), 1.0f + 1e-5f) << id;
+      EXPECT_NEAR(Vec3f(v.normal[0], v.normal[1], v.normal[2]).norm(), 1.0f, 1e-5f) << id;
+    }
+  }
+  const MeshData box = boxMesh();
+  EXPECT_EQ(box.vertices.size(), 24u);
+  EXPECT_EQ(box.indices.size(), 36u);
+  for (const MeshVertex& v : sphereMesh().vertices)
+    EXPECT_NEAR(Vec3f(v.position[0], v.position[1], v.position[2]).norm(), 1.0f, 1e-5f);
+  // Capsule: the upper hemisphere moves up with the stretch, the lower down.
+  for (const MeshVertex& v : capsuleMesh().vertices) {
+    if (v.position[1] > 1e-4f) {
+      EXPECT_EQ(v.capSign, 1.0f);
+    }
+    if (v.position[1] < -1e-4f) {
+      EXPECT_EQ(v.capSign, -1.0f);
+    }
+  }
+}
+
+TEST(Meshes, ModelMeshesKeepCreasesAndSmoothCurves) {
+  // A cube: 90 degree edges stay sharp, so every corner has its face's normal.
+  Mesh cube;
+  for (int i = 0; i < 8; ++i) cube.vertices.emplace_back(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1);
+  cube.triangles = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                    {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  const MeshData m = modelMesh(cube);
+  ASSERT_EQ(m.vertices.size(), 36u);
+  std::set<std::tuple<int, int, int>> normals;
+  for (const MeshVertex& v : m.vertices)
+    normals.insert({static_cast<int>(std::lround(v.normal[0])), static_cast<int>(std::lround(v.normal[1])),
+                    static_cast<int>(std::lround(v.normal[2]))});
+  EXPECT_EQ(normals.size(), 6u);
+  // The bowl: a curved surface gets normals between its faces' normals.
+  const Scene shapes = scene("shapes.json");
+  const Mesh& bowl = *shapes.model.bodies[static_cast<size_t>(shapes.model.bodyIndex("bowl"))].shape.mesh;
+  const MeshData b = modelMesh(bowl);
+  EXPECT_EQ(b.vertices.size(), 3 * bowl.triangles.size());
+  int smoothed = 0;
+  for (size_t t = 0; t < b.vertices.size(); t += 3) {
+    const Vec3f n0(b.vertices[t].normal[0], b.vertices[t].normal[1], b.vertices[t].normal[2]);
+    const Vec3f n1(b.vertices[t + 1].normal[0], b.vertices[t + 1].normal[1], b.vertices[t + 1].normal[2]);
+    smoothed += (n0 - n1).norm() > 1e-3f;
+  }
+  EXPECT_GT(smoothed, static_cast<int>(bowl.triangles.size() / 2));
+}
+
+// ---- the scene builder ----
+
+TEST(SceneBuilder, OneInstancePerBodyWithItsShapeAndPose) {
+  const Scene s = scene("shapes.json");
+  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, {});
+  ASSERT_EQ(dl.solids.size(), s.model.bodies.size());
+  for (const Instance& in : dl.solids) {
+    const Body& b = s.model.bodies[static_cast<size_t>(in.body)];
+    const BodyState& st = s.initial.bodies[static_cast<size_t>(in.body)];
+    EXPECT_TRUE(in.position.isApprox(st.x.cast<float>())) << b.name;
+    EXPECT_TRUE(in.rotation.isApprox(st.q.cast<float>().normalized(), 1e-5f)) << b.name;
+    switch (b.shape.type) {
+      case ShapeType::Box:
+        EXPECT_EQ(in.mesh, kBoxMesh);
+        EXPECT_TRUE(in.scale.isApprox(b.shape.halfExtents.cast<float>()));
+        break;
+      case ShapeType::Sphere: EXPECT_EQ(in.mesh, kSphereMesh); break;
+      case ShapeType::Capsule:
+        EXPECT_EQ(in.mesh, kCapsuleMesh);
+        EXPECT_FLOAT_EQ(in.scale.x(), static_cast<float>(b.shape.radius));
+        EXPECT_FLOAT_EQ(in.stretch, static_cast<float>(b.shape.halfHeight));
+        break;
+      case ShapeType::Cylinder:
+        EXPECT_EQ(in.mesh, kCylinderMesh);
+        EXPECT_FLOAT_EQ(in.scale.y(), static_cast<float>(b.shape.halfHeight));
+        break;
+      case ShapeType::ConvexMesh:
+      case ShapeType::TriangleMesh:
+        ASSERT_GE(in.mesh, kFirstCustomMesh);
+        EXPECT_EQ(dl.meshes.at(static_cast<size_t>(in.mesh - kFirstCustomMesh)), b.shape.mesh);
+        break;
+      default: ADD_FAILURE() << "unexpected shape";
+    }
+    // Static bodies are grounds: grey, with a grid.
+    EXPECT_EQ((in.flags & kGrid) != 0, b.isStatic) << b.name;
+  }
+  EXPECT_EQ(dl.meshes.size(), 2u);  // the bowl and the gem
+  EXPECT_TRUE(dl.overlays.empty());
+}
+
+TEST(SceneBuilder, PlanesBecomeLargeQuadsFacingTheirNormal) {
+  Scene s = parseScene(R"({"bodies": [
+      {"name": "floor", "static": true, "shape": {"type": "plane", "normal": [0, 0, 1], "offset": 2}},
+      {"name": "ball", "shape": {"type": "sphere", "radius": 0.5}, "position": [0, 0, 5]}]})",
+                       "plane.json", ".");
+  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, {});
+  const Instance& q = dl.solids[0];
+  EXPECT_EQ(q.mesh, kQuadMesh);
+  EXPECT_TRUE((q.rotation * Vec3f::UnitY()).isApprox(Vec3f::UnitZ(), 1e-5f));
+  EXPECT_NEAR(q.position.z(), 2.0f, 1e-4f);  // on the plane
+  EXPECT_GE(q.scale.x(), 100.0f);
+  EXPECT_TRUE(q.flags & kNoShadow);
+}
+
+TEST(SceneBuilder, ColoursTellBodiesApartAndShowQuantities) {
+  Scene s = scene("stack.json");
+  // One group (a single stack): auto colours by body, five distinct colours.
+  const DrawList byBody = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, {});
+  std::set<std::vector<int>> colours;
+  for (const Instance& in : byBody.solids)
+    if (!s.model.bodies[static_cast<size_t>(in.body)].isStatic)
+      colours.insert({int(in.colour.x() * 255), int(in.colour.y() * 255), int(in.colour.z() * 255)});
+  EXPECT_EQ(colours.size(), 5u);
+
+  // Speed and activity: one box moving fast, the others at rest.
+  State moving = s.initial;
+  const int top = s.model.bodyIndex("stack_4");
+  ASSERT_GE(top, 0);
+  moving.bodies[static_cast<size_t>(top)].v = Vec3(10, 0, 0);
+  ViewOptions v;
+  v.colour = ColourMode::Speed;
+  const DrawList speed = buildDrawList(s.model, moving, nullptr, defaultCamera(s), v, {});
+  EXPECT_TRUE(speed.solids[static_cast<size_t>(top)].colour.head<3>().isApprox(rampColour(1.0)));
+  EXPECT_TRUE(speed.solids[static_cast<size_t>(top) - 1].colour.head<3>().isApprox(rampColour(0.0)));
+  EXPECT_FALSE(rampColour(0.0).isApprox(rampColour(1.0)));
+  v.colour = ColourMode::Activity;
+  const DrawList act = buildDrawList(s.model, moving, nullptr, defaultCamera(s), v, {});
+  EXPECT_FALSE(act.solids[static_cast<size_t>(top)].colour.isApprox(act.solids[static_cast<size_t>(top) - 1].colour));
+  EXPECT_TRUE(act.solids[1].colour.isApprox(act.solids[2].colour));  // both at rest
+
+  // Error: sink the top box 5 cm into the one below; a step finds the contact, and at the sunk
+  // coordinates its manifold measures the overlap.
+  State sunk = s.initial;
+  sunk.bodies[static_cast<size_t>(top)].x.y() -= 0.05;
+  SolverSettings settings = resolve(s.solver);
+  World world(s.model, settings, sunk);
+  world.step();
+  const std::vector<double> err = bodyErrors(s.model, sunk, &world.manifolds());
+  EXPECT_NEAR(err[static_cast<size_t>(top)], 0.05, 0.005);
+  EXPECT_NEAR(err[static_cast<size_t>(top) - 1], 0.05, 0.005);  // both sides of the contact
+  EXPECT_LT(err[1], 0.005);  // the bottom box sits on the ground
+  v.colour = ColourMode::Error;
+  const DrawList e = buildDrawList(s.model, sunk, &world.manifolds(), defaultCamera(s), v, {});
+  EXPECT_TRUE(e.solids[static_cast<size_t>(top)].colour.head<3>().isApprox(rampColour(1.0)));
+  EXPECT_FALSE(e.footer.empty());  // the legend says what the colours mean
+
+  // Highlight: only the named body glows.
+  v = ViewOptions{};
+  v.highlight = {"stack_2"};
+  const DrawList h = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), v, {});
+  for (const Instance& in : h.solids) EXPECT_EQ(in.highlight, in.body == s.model.bodyIndex("stack_2") ? 1.0f : 0.0f);
+}
+
+TEST(SceneBuilder, GroupsGetOneHueWithDistinctShades) {
+  const Scene s = scene("pile.json");  // columns in ten groups
+  ViewOptions v;
+  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), v, {});
+  std::map<int, std::set<std::vector<int>>> perGroup;
+  for (const Instance& in : dl.solids) {
+    const Body& b = s.model.bodies[static_cast<size_t>(in.body)];
+    if (!b.isStatic) perGroup[b.group].insert({int(in.colour.x() * 255), int(in.colour.y() * 255), int(in.colour.z() * 255)});
+  }
+  ASSERT_EQ(perGroup.size(), 10u);
+  for (const auto& [g, cs] : perGroup) EXPECT_GT(cs.size(), 5u) << "group " << g;
+  EXPECT_FALSE(groupColour(0, 0).isApprox(groupColour(1, 0)));
+}
+
+TEST(SceneBuilder, ContactOverlaysShowPointsAndNormals) {
+  const Scene s = scene("box_on_ground.json");
+  World world(s.model, resolve(s.solver), s.initial);
+  world.step();
+  ASSERT_FALSE(world.manifolds().empty());
+  int points = 0;
+  for (const Manifold& m : world.manifolds()) points += m.count;
+  ASSERT_EQ(points, 4);
+  ViewOptions v;
+  v.contacts = true;
+  const DrawList dl = buildDrawList(s.model, world.state(), &world.manifolds(), defaultCamera(s), v, {});
+  ASSERT_EQ(dl.overlays.size(), 2u * points);
+  const Manifold& m = world.manifolds()[0];
+  const Vec3f intoA = (world.state().bodies[static_cast<size_t>(m.a)].x - world.state().bodies[static_cast<size_t>(m.b)].x)
+                          .cast<float>()
+                          .normalized();
+  for (const Instance& in : dl.overlays) {
+    EXPECT_TRUE(in.flags & kNoShadow);
+    if (in.mesh == kSphereMesh) {
+      EXPECT_NEAR(in.position.y(), 0.0f, 0.01f);  // on the ground's surface
+    } else {
+      EXPECT_EQ(in.mesh, kCylinderMesh);
+      EXPECT_GT((in.rotation * Vec3f::UnitY()).dot(intoA), 0.99f);  // the normal, from B into A
+    }
+  }
+  // Off by default.
+  EXPECT_TRUE(buildDrawList(s.model, world.state(), &world.manifolds(), defaultCamera(s), {}, {}).overlays.empty());
+}
+
+TEST(SceneBuilder, JointOverlaysMarkAnchorsAndArms) {
+  const Scene s = scene("pendulum_chain.json");
+  ViewOptions v;
+  v.joints = true;
+  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), v, {});
+  // Two arms and an anchor per ball joint (the two anchors coincide at the start).
+  EXPECT_EQ(dl.overlays.size(), 3 * s.model.joints.size());
+  const Joint& j = s.model.joints[0];
+  const Vec3f anchor = s.initial.bodies[static_cast<size_t>(j.bodyA)].pose().apply(j.localAnchorA).cast<float>();
+  bool found = false;
+  for (const Instance& in : dl.overlays) found |= in.mesh == kSphereMesh && in.position.isApprox(anchor, 1e-4f);
+  EXPECT_TRUE(found);
+}
+
+TEST(SceneBuilder, HudSaysSceneSettingsTimeAndCost) {
+  const Scene s = scene("stack.json");
+  SolverSettings a5;
+  a5.algorithm = Algorithm::A5;
+  a5.substeps = 4;
+  a5.iterations = 2;
+  a5.kappa = 1.1;
+  a5.tau = 0.9;
+  const std::string line = settingsLine(a5);
+  for (const char* part : {"a5", "n=4", "m=2", "κ=1.1", "τ=0.9", "h=1/60"})
+    EXPECT_NE(line.find(part), std::string::npos) << line << " lacks " << part;
+  EXPECT_EQ(shortSettingsLine(a5), "a5 n=4 m=2 κ=1.1 τ=0.9");
+  SolverSettings a2;
+  a2.iterations = 4;
+  EXPECT_EQ(shortSettingsLine(a2), "a2 m=4");
+  HudInfo hud;
+  hud.scene = sceneLine(s);
+  hud.settings = line;
+  hud.time = 1.25;
+  hud.stepMs = 0.5;
+  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, hud);
+  ASSERT_EQ(dl.hud.size(), 3u);
+  EXPECT_EQ(dl.hud[0].text, "stack: 5 bodies, 0 joints");
+  EXPECT_EQ(dl.hud[2].text, "t = 1.250 s    step 0.50 ms");
+  hud.stepMs = std::numeric_limits<double>::quiet_NaN();
+  hud.status = "diverged";
+  const DrawList noCost = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, hud);
+  EXPECT_EQ(noCost.hud[2].text, "t = 1.250 s");
+  EXPECT_EQ(noCost.hud[3].text, "diverged");
+  ViewOptions off;
+  off.hud = false;
+  EXPECT_TRUE(buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), off, hud).hud.empty());
+}
+
+// ---- cameras ----
+
+TEST(Camera, YawPitchAndDistancePlaceTheEye) {
+  const Scene s = scene("stack.json");
+  CameraPreset p;
+  p.target = Vec3(1, 2, 3);
+  p.distance = 10;
+  p.yaw = 0;
+  p.pitch = 0;
+  Camera c = placeCamera(p, s.model, s.initial);
+  EXPECT_TRUE(c.eye.isApprox(Vec3f(1, 2, 13)));  // yaw 0 looks along -Z
+  p.yaw = 90;
+  c = placeCamera(p, s.model, s.initial);
+  EXPECT_TRUE(c.eye.isApprox(Vec3f(11, 2, 3), 1e-5f));
+  p.pitch = 30;
+  c = placeCamera(p, s.model, s.initial);
+  EXPECT_NEAR(c.eye.y(), 2 + 10 * std::sin(30 * M_PI / 180), 1e-4);
+  // The view matrix puts the target straight ahead at the distance.
+  const Eigen::Vector4f t = c.view() * Eigen::Vector4f(1, 2, 3, 1);
+  EXPECT_TRUE(t.head<3>().isApprox(Vec3f(0, 0, -10), 1e-4f));
+  // A point on the edge of the vertical field of view projects to the top of the frame.
+  p = CameraPreset{};
+  p.yaw = p.pitch = 0;
+  c = placeCamera(p, s.model, s.initial);
+  const float half = static_cast<float>(std::tan(22.5 * M_PI / 180));
+  EXPECT_NEAR(project(c, 16.0f / 9, Vec3f(0, half * 10, 0)).y(), 1.0f, 1e-4f);
+  // A narrow panel keeps the preset's horizontal extent.
+  const float x169 = project(c, 16.0f / 9, Vec3f(3, 0, 0)).x();
+  EXPECT_NEAR(project(c, 0.9f, Vec3f(3, 0, 0)).x(), x169, 1e-4f);
+}
+
+TEST(Camera, FollowOrbitPresetsAndFit) {
+  Scene s = scene("stack.json");
+  CameraOptions o;
+  o.preset = "side";
+  EXPECT_EQ(chooseCamera(s, o).name, "side");
+  o.preset = "nope";
+  try {
+    chooseCamera(s, o);
+    FAIL() << "an unknown camera must be refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("default, side"), std::string::npos) << e.what();
+  }
+  o = CameraOptions{};
+  o.follow = "stack_4";
+  o.distance = 5;
+  const CameraPreset f = chooseCamera(s, o);
+  State st = s.initial;
+  st.bodies[static_cast<size_t>(s.model.bodyIndex("stack_4"))].x = Vec3(7, 8, 9);
+  EXPECT_TRUE(placeCamera(f, s.model, st).target.isApprox(Vec3f(7, 8, 9)));
+  o.follow = "ghost";
+  EXPECT_THROW(chooseCamera(s, o), std::invalid_argument);
+  // Orbit: a quarter turn after 1 s at 90 degrees per second.
+  CameraPreset p;
+  p.yaw = 0;
+  p.pitch = 0;
+  st.time = 1.0;
+  const Camera c = placeCamera(p, s.model, st, 90);
+  EXPECT_TRUE((c.eye - c.target).normalized().isApprox(Vec3f::UnitX(), 1e-5f));
+  // No presets: a fitted camera sees every dynamic body.
+  s.cameras.clear();
+  const Scene pile = [] {
+    Scene p = scene("pile.json");
+    p.cameras.clear();
+    return p;
+  }();
+  const Camera fit = placeCamera(chooseCamera(pile, {}), pile.model, pile.initial);
+  for (size_t i = 0; i < pile.model.bodies.size(); ++i) {
+    if (pile.model.bodies[i].isStatic) continue;
+    const Eigen::Vector3f ndc = project(fit, 16.0f / 9, pile.initial.bodies[i].x.cast<float>());
+    EXPECT_LT(std::abs(ndc.x()), 1.0f);
+    EXPECT_LT(std::abs(ndc.y()), 1.0f);
+  }
+}
+
+TEST(Camera, GridLayoutTilesTheFrame) {
+  for (int panels = 1; panels <= 4; ++panels) {
+    const auto vps = gridLayout(1280, 720, panels);
+    ASSERT_EQ(static_cast<int>(vps.size()), panels);
+    long long area = 0;
+    for (const Viewport& v : vps) {
+      area += static_cast<long long>(v.width) * v.height;
+      EXPECT_GE(v.x, 0);
+      EXPECT_LE(v.x + v.width, 1280);
+      EXPECT_LE(v.y + v.height, 720);
+    }
+    // Up to two panels fill the frame; three leave the fourth cell empty.
+    EXPECT_EQ(area, panels == 3 ? 1280LL * 720 * 3 / 4 : 1280LL * 720);
+  }
+}
+
+// ---- comparison specs ----
+
+TEST(CompareSpecs, TheIssueExampleAndEveryKey) {
+  auto specs = parseCompareSpecs("a2:m=4,a5:n=4");
+  ASSERT_EQ(specs.size(), 2u);
+  EXPECT_EQ(specs[0].text, "a2:m=4");
+  EXPECT_EQ(*specs[0].overrides.algorithm, Algorithm::A2);
+  EXPECT_EQ(*specs[0].overrides.iterations, 4);
+  EXPECT_EQ(*specs[1].overrides.algorithm, Algorithm::A5);
+  EXPECT_EQ(*specs[1].overrides.substeps, 4);
+  EXPECT_FALSE(specs[1].overrides.iterations);
+
+  specs = parseCompareSpecs("a1, a5:n=8:m=2:kappa=1.1:tau=0.9:warm=on ,a2:omega=1.3;tol=1e-4;dt=0.01,a3:preset=4-hard");
+  ASSERT_EQ(specs.size(), 4u);
+  EXPECT_EQ(*specs[0].overrides.algorithm, Algorithm::A1);
+  const SolverOverrides& a5 = specs[1].overrides;
+  EXPECT_EQ(*a5.substeps, 8);
+  EXPECT_EQ(*a5.iterations, 2);
+  EXPECT_DOUBLE_EQ(*a5.kappa, 1.1);
+  EXPECT_DOUBLE_EQ(*a5.tau, 0.9);
+  EXPECT_TRUE(*a5.warmStart);
+  EXPECT_DOUBLE_EQ(*specs[2].overrides.omega, 1.3);
+  EXPECT_DOUBLE_EQ(*specs[2].overrides.tolerance, 1e-4);
+  EXPECT_DOUBLE_EQ(*specs[2].overrides.dt, 0.01);
+  EXPECT_EQ(*specs[3].overrides.preset, "4-hard");
+}
+
+TEST(CompareSpecs, BadSpecsSayWhatIsWrong) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"a2", "2 to 4 panels"},
+      {"a1,a2,a2:m=3,a2:m=4,a2:m=5", "2 to 4 panels"},
+      {"a9,a2", "unknown algorithm \"a9\""},
+      {"a2:m=0,a1", "m: expected a whole number from 1"},
+      {"a2:m=four,a1", "m: expected a whole number"},
+      {"a2:m=4x,a1", "m: expected a whole number"},
+      {"a2:omega=2,a1", "omega: expected a number in (0, 2)"},
+      {"a2:frob=1,a1", "unknown key \"frob\""},
+      {"a2:m,a1", "expected key=value"},
+      {"a2,,a1", "empty panel"},
+      {"a5:warm=maybe,a1", "warm: expected on or off"},
+  };
+  for (const auto& [spec, fragment] : cases) {
+    try {
+      parseCompareSpecs(spec);
+      ADD_FAILURE() << spec << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << spec << ": " << e.what();
+    }
+  }
+}
+
+// ---- images ----
+
+TEST(Images, PngRoundTripAndAtomicWrite) {
+  Image img(7, 5, 0x102030ff);
+  img.pixel(3, 2)[0] = 200;
+  img.pixel(6, 4)[3] = 128;
+  const Image back = decodePng(encodePng(img));
+  EXPECT_EQ(back.width, 7);
+  EXPECT_EQ(back.height, 5);
+  EXPECT_EQ(back.rgba, img.rgba);
+  const fs::path f = scratch("round.png");
+  writePng(f.string(), img);
+  EXPECT_EQ(readPng(f.string()).rgba, img.rgba);
+  for (const auto& e : fs::directory_iterator(f.parent_path()))
+    EXPECT_EQ(e.path().string().find(".part"), std::string::npos) << e.path();
+  EXPECT_THROW(writePng("/proc/no/such/dir/x.png", img), std::runtime_error);
+  EXPECT_THROW(readPng(scratch("missing.png").string()), std::runtime_error);
+  EXPECT_THROW(decodePng({1, 2, 3}), std::runtime_error);
+}
+
+TEST(Images, ComparisonToleratesRoundingButNotChange) {
+  Image a(100, 100, 0x808080ff), b = a;
+  CompareOptions o;
+  o.threshold = 8;
+  o.maxShare = 0.001;  // 10 pixels of 10000
+  CompareResult r = compareImages(a, b, o);
+  EXPECT_TRUE(r.match);
+  EXPECT_EQ(r.differing, 0);
+  // Rounding: every pixel off by a few levels.
+  for (size_t i = 0; i < b.rgba.size(); i += 4) b.rgba[i] = static_cast<uint8_t>(b.rgba[i] + 3);
+  r = compareImages(a, b, o);
+  EXPECT_TRUE(r.match) << r.summary();
+  EXPECT_EQ(r.maxDelta, 3);
+  // A few changed pixels are tolerated, more are not.
+  for (int k = 0; k < 10; ++k) b.pixel(k, 0)[1] = 0;
+  r = compareImages(a, b, o);
+  EXPECT_TRUE(r.match) << r.summary();
+  EXPECT_EQ(r.differing, 10);
+  b.pixel(50, 50)[2] = 255;
+  r = compareImages(a, b, o);
+  EXPECT_FALSE(r.match);
+  EXPECT_EQ(r.differing, 11);
+  EXPECT_NEAR(r.share, 0.0011, 1e-12);
+  // The diff image marks the changed pixels red and keeps the rest dim.
+  EXPECT_EQ(r.diff.pixel(50, 50)[0], 255);
+  EXPECT_EQ(r.diff.pixel(50, 50)[1], 0);
+  EXPECT_LT(r.diff.pixel(20, 20)[0], 100);
+  EXPECT_FALSE(compareImages(a, Image(100, 99), o).match);
+}
+
+// ---- text ----
+
+TEST(Text, Utf8AndFontLayout) {
+  EXPECT_EQ(decodeUtf8("aκτ≤"), (std::vector<uint32_t>{'a', 0x3BA, 0x3C4, 0x2264}));
+  EXPECT_EQ(decodeUtf8("a\xff" "b"), (std::vector<uint32_t>{'a', 0xFFFD, 'b'}));
+  EXPECT_EQ(decodeUtf8("\xce"), (std::vector<uint32_t>{0xFFFD}));  // truncated
+  const Font f(defaultFontPath(), 20);
+  EXPECT_GT(f.width("a"), 5);
+  EXPECT_NEAR(f.width("aa"), 2 * f.width("a"), 1e-4);
+  EXPECT_GT(f.width("κ=1 τ=0.6"), f.width("k=1 t=0.6") * 0.8);
+  EXPECT_EQ(f.layout("a b", 0, 20).size(), 2u);     // a space has no quad
+  EXPECT_EQ(f.layout("κτ", 0, 20).size(), 2u);     // Greek is in the atlas
+  EXPECT_EQ(f.layout("\xe4\xb8\xad", 0, 20).size(), 0u);  // CJK is not: skipped, not garbage
+  const auto q = f.layout("T", 10, 30);
+  ASSERT_EQ(q.size(), 1u);
+  EXPECT_LT(q[0].y0, 30);  // above the baseline
+  EXPECT_GE(q[0].x0, 9);  // a glyph may start a pixel left of the pen (its bearing)
+  long coverage = 0;
+  for (uint8_t v : f.atlas()) coverage += v;
+  EXPECT_GT(coverage, 10000);
+  try {
+    Font missing("/no/such/font.ttf", 12);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("fonts-dejavu-core"), std::string::npos) << e.what();
+  }
+}
+
+// ---- video ----
+
+TEST(Video, FramesThroughFfmpegMakeAPlayableFile) {
+  const std::string ffmpeg = findFfmpeg();
+  if (ffmpeg.empty()) GTEST_SKIP() << "ffmpeg is not installed";
+  EXPECT_EQ(findProgram("sh").empty(), false);
+  EXPECT_EQ(findProgram("no-such-program-substep"), "");
+  const fs::path f = scratch("v.mp4");
+  fs::remove(f);
+  {
+    VideoOptions o;
+    o.fps = 30;
+    VideoEncoder v(ffmpeg, f.string(), 64, 48, o);
+    for (int k = 0; k < 12; ++k) v.write(Image(64, 48, 0x000000ffu | (static_cast<uint32_t>(k * 20) << 24)));
+    v.finish();
+  }
+  ASSERT_TRUE(fs::exists(f));
+  const std::string cmd = "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+                          "stream=codec_name,width,height,pix_fmt,nb_read_frames -of csv=p=0 " +
+                          f.string() + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  char buf[256] = {0};
+  const size_t n = fread(buf, 1, sizeof buf - 1, p);
+  pclose(p);
+  EXPECT_EQ(std::string(buf, n), "h264,64,48,yuv420p,12\n");
+}
+
+TEST(Video, AFailingFfmpegIsReportedAndLeavesNoFile) {
+  const fs::path f = scratch("bad.mp4");
+  fs::remove(f);
+  // /bin/false takes no frames: writing fails with EPIPE (not SIGPIPE), and the message says so.
+  bool thrown = false;
+  try {
+    VideoEncoder v("/bin/false", f.string(), 64, 48, {});
+    for (int k = 0; k < 50; ++k) v.write(Image(64, 48));
+    v.finish();
+  } catch (const VideoError& e) {
+    thrown = true;
+    EXPECT_NE(std::string(e.what()).find("status 1"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(thrown);
+  EXPECT_FALSE(fs::exists(f));
+  EXPECT_THROW(VideoEncoder("/bin/true", f.string(), 63, 48, {}), VideoError);  // yuv420p needs even sizes
+  // An encoder dropped before finish() removes what it wrote.
+  const std::string ffmpeg = findFfmpeg();
+  if (ffmpeg.empty()) return;
+  {
+    VideoEncoder v(ffmpeg, f.string(), 64, 48, {});
+    v.write(Image(64, 48));
+  }
+  EXPECT_FALSE(fs::exists(f));
+}

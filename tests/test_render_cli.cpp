@@ -1,0 +1,208 @@
+// `substep render`: outputs (PNG, PNG sequence, MP4), comparisons, progress, bad input (exit 2),
+// divergence (exit 3), a failing ffmpeg (exit 1), and nothing partial left behind. Runs the binary.
+#include "render/image.h"
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Outcome {
+  int status;
+  std::string output;  // stdout and stderr
+};
+
+Outcome run(const std::string& args, const std::string& env = "") {
+  const std::string cmd = "cd " SUBSTEP_SOURCE_DIR " && " + env + " " SUBSTEP_EXE " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  Outcome r{-1, ""};
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+// A folder per test (CTest runs tests in parallel), emptied first.
+fs::path scratch() {
+  fs::path d = fs::path(SUBSTEP_BINARY_DIR) / "test_render_cli_out" /
+               ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+std::vector<std::string> listing(const fs::path& d) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(d)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::string probe(const fs::path& f) {
+  const std::string cmd = "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+                          "stream=codec_name,width,height,pix_fmt,nb_read_frames -of csv=p=0 " + f.string() + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  char buf[512] = {0};
+  const size_t n = fread(buf, 1, sizeof buf - 1, p);
+  pclose(p);
+  return std::string(buf, n);
+}
+
+bool haveFfmpeg() { return std::system("command -v ffmpeg >/dev/null 2>&1 && command -v ffprobe >/dev/null 2>&1") == 0; }
+
+}  // namespace
+
+TEST(RenderCli, HelpListsTheOptions) {
+  const Outcome r = run("render --help");
+  EXPECT_EQ(r.status, 0);
+  for (const char* o : {"--compare", "--fps", "--size", "--at", "--seconds", "--camera", "--color", "--contacts", "--joints",
+                        "--algo", "a2:m=4,a5:n=4"})
+    EXPECT_NE(r.output.find(o), std::string::npos) << o;
+}
+
+// Every kind of bad argument: exit status 2, a message naming the problem, and no output file.
+TEST(RenderCli, BadArgumentsExitWithStatus2AndWriteNothing) {
+  const fs::path d = scratch();
+  const std::string png = (d / "x.png").string(), mp4 = (d / "x.mp4").string();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"assets/scenes/stack.json --size 0x0 -o " + png, "--size 0x0"},
+      {"assets/scenes/stack.json --size 7681x4320 -o " + png, "at most 7680x4320"},
+      {"assets/scenes/stack.json --size 1280x4321 -o " + png, "4320"},
+      {"assets/scenes/stack.json --size big -o " + png, "WIDTHxHEIGHT"},
+      {"assets/scenes/stack.json --fps 0 -o " + mp4, "--fps"},
+      {"assets/scenes/stack.json --fps 241 -o " + mp4, "--fps"},
+      {"assets/scenes/stack.json --algo a9 -o " + png, "--algo"},
+      {"assets/scenes/stack.json --compare a9,a2 -o " + png, "unknown algorithm \"a9\""},
+      {"assets/scenes/stack.json --compare a2 -o " + png, "2 to 4 panels"},
+      {"assets/scenes/stack.json --compare a2:kappa=1,a1 -o " + png, "no κ"},
+      {"assets/scenes/stack.json --compare a1,a2 --algo a2 -o " + png, "excludes"},
+      {"assets/scenes/stack.json -o /proc/forbidden/x.png", "/proc/forbidden"},
+      {"assets/scenes/stack.json -o " + (d / "x.gif").string(), "cannot tell what to write"},
+      {"assets/scenes/stack.json --seconds 2 -o " + png, "--at"},
+      {"assets/scenes/stack.json --at 2 -o " + mp4, "--at: only for a single .png"},
+      {"assets/scenes/stack.json --size 321x180 -o " + mp4, "even width and height"},
+      {"assets/scenes/stack.json --camera nope -o " + png, "has no camera \"nope\" (it has: default, side)"},
+      {"assets/scenes/stack.json --follow ghost -o " + png, "no body \"ghost\""},
+      {"assets/scenes/stack.json --highlight ghost -o " + png, "no body \"ghost\""},
+      {"assets/scenes/stack.json --color rainbow -o " + png, "--color"},
+      {"assets/scenes/no_such.json -o " + png, "cannot open"},
+      {"tests/data/bad/negative_mass.json -o " + png, "bodies[0].mass"},
+  };
+  for (const auto& [args, fragment] : cases) {
+    const Outcome r = run("render " + args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(fragment), std::string::npos) << args << "\n" << r.output;
+  }
+  EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+  // ffmpeg missing: a clear message, exit status 2, before any work.
+  const Outcome r = run("render assets/scenes/stack.json --seconds 0.1 -o " + mp4, "PATH=/nonexistent");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("needs the ffmpeg program"), std::string::npos) << r.output;
+  EXPECT_TRUE(listing(d).empty());
+}
+
+// The acceptance's single frame: a PNG of the stack at t = 1 s, with the HUD.
+TEST(RenderCli, WritesOnePngAtATime) {
+  const fs::path d = scratch(), f = d / "s.png";
+  const Outcome r = run("render assets/scenes/stack.json --at 1.0 --size 320x180 -o " + f.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("wrote"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("60 steps"), std::string::npos) << r.output;  // 1 s at h = 1/60
+  const substep::render::Image img = substep::render::readPng(f.string());
+  EXPECT_EQ(img.width, 320);
+  EXPECT_EQ(img.height, 180);
+  // Not a flat image: count distinct colours.
+  std::set<uint32_t> colours;
+  for (size_t i = 0; i < img.rgba.size(); i += 4)
+    colours.insert(img.rgba[i] << 16 | img.rgba[i + 1] << 8 | img.rgba[i + 2]);
+  EXPECT_GT(colours.size(), 500u);
+  EXPECT_EQ(listing(d), std::vector<std::string>{"s.png"});
+}
+
+TEST(RenderCli, WritesAnH264VideoAtTheVideoRate) {
+  if (!haveFfmpeg()) GTEST_SKIP() << "ffmpeg is not installed";
+  const fs::path d = scratch(), f = d / "v.mp4";
+  // Physics at 1/60 s, frames at 1/30 s: 0.5 s is 15 frames.
+  const Outcome r = run("render assets/scenes/stack.json --seconds 0.5 --fps 30 --size 320x180 -o " + f.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(probe(f), "h264,320,180,yuv420p,15\n");
+  EXPECT_EQ(listing(d), std::vector<std::string>{"v.mp4"});
+}
+
+TEST(RenderCli, WritesANumberedPngSequenceIntoAFolder) {
+  const fs::path d = scratch(), out = d / "frames";
+  fs::create_directories(out);
+  { std::ofstream stale(out / "frame_00009.png"); }  // from an earlier, longer render
+  { std::ofstream mine(out / "notes.txt"); }          // not ours: left alone
+  const Outcome r = run("render assets/scenes/pendulum_chain.json --seconds 0.2 --fps 20 --size 160x90 -o " +
+                        out.string() + "/");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(listing(out), (std::vector<std::string>{"frame_00000.png", "frame_00001.png", "frame_00002.png",
+                                                      "frame_00003.png", "notes.txt"}));
+  EXPECT_EQ(listing(d), std::vector<std::string>{"frames"});  // no staging folder left
+  // Frames differ: the chain swings.
+  EXPECT_NE(substep::render::readPng((out / "frame_00000.png").string()).rgba,
+            substep::render::readPng((out / "frame_00003.png").string()).rgba);
+}
+
+// --compare draws the panels side by side, each labelled with its setting.
+TEST(RenderCli, ComparesSettingsInAGrid) {
+  const fs::path d = scratch(), f = d / "c.png";
+  const Outcome r = run("render assets/scenes/pendulum_chain.json --compare a1,a2:m=2:omega=1.2 --at 0.5 --size 320x180 -o " +
+                        f.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("solver    a1"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("iterations<=2 ω=1.2"), std::string::npos) << r.output;
+  const substep::render::Image img = substep::render::readPng(f.string());
+  // The border between the panels is a dark column at the middle.
+  const uint8_t* border = img.pixel(159, 120);
+  EXPECT_LT(border[0] + border[1] + border[2], 30);
+}
+
+TEST(RenderCli, ShowsProgressForLongRenders) {
+  const fs::path d = scratch();
+  // Longer than a second of wall time: 240 frames with 210 boxes stepped between them.
+  const Outcome r = run("render assets/scenes/pyramid.json --seconds 4 --size 160x90 -o " + (d / "p").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("render ["), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("/240"), std::string::npos) << r.output;  // frames done of all
+  EXPECT_NE(r.output.find("left"), std::string::npos) << r.output;  // time left
+}
+
+// A simulation that diverges stops the render: exit status 3, a message naming the body, no file.
+TEST(RenderCli, DivergenceStopsWithStatus3AndNoFile) {
+  const fs::path d = scratch();
+  for (const std::string out : {"x.png", "x.mp4", "frames"}) {
+    const std::string args = out == "x.png" ? " --at 1" : " --seconds 1";
+    const Outcome r = run("render tests/data/diverging.json --size 160x90" + args + " -o " + (d / out).string());
+    EXPECT_EQ(r.status, 3) << out << "\n" << r.output;
+    EXPECT_NE(r.output.find("diverged"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("\"light\""), std::string::npos) << r.output;
+  }
+  EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+}
+
+// ffmpeg failing: a clear message, exit status 1, and the partial file removed.
+TEST(RenderCli, FailingFfmpegLeavesNothingBehind) {
+  const fs::path d = scratch(), f = d / "v.mp4";
+  const Outcome r = run("render assets/scenes/stack.json --seconds 1 --size 160x90 -o " + f.string(),
+                        "SUBSTEP_FFMPEG=/bin/false");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("ffmpeg"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("status 1"), std::string::npos) << r.output;
+  EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+}
