@@ -70,6 +70,7 @@ void World::geometry() {
   broadphase_.update(state_, reach_);
   broadphase_.findPairs(pairs_);
   manifolds_.beginStep();
+  report_.cachedPairs = 0;
   ContactPatch patch;
   for (const auto& [i, j] : pairs_) {
     // A plane or triangle mesh is always B, so the normal points out of it.
@@ -79,10 +80,22 @@ void World::geometry() {
     const Body& B = model_.bodies[static_cast<size_t>(b)];
     const Pose pA = state_.bodies[static_cast<size_t>(a)].pose();
     const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
+    // A pair that has barely moved relative to itself since its points were found keeps them.
+    const Manifold* old = manifolds_.previous(a, b);
+    if (old && pairShift(*old, pA, pB) < kPairCacheShift) {
+      manifolds_.reuse(*old, pA, pB);
+      ++report_.cachedPairs;
+      continue;
+    }
     narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB,
                          reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)], patch);
     if (patch.count == 0) continue;
-    manifolds_.add(a, b, pA, pB, std::sqrt(A.friction * B.friction), std::max(A.restitution, B.restitution), patch);
+    // How far from its origin a point of B can be: B's size, or for a surface the distance of A's
+    // far side from B's origin.
+    const double rA = A.shape.boundingRadius();
+    const double rB = isSurface(B.shape.type) ? (pA.p - pB.p).norm() + rA : B.shape.boundingRadius();
+    manifolds_.add(a, b, pA, pB, std::sqrt(A.friction * B.friction), std::max(A.restitution, B.restitution), patch,
+                   rB);
   }
   report_.pairs = static_cast<int>(pairs_.size());
   report_.manifolds = static_cast<int>(manifolds_.manifolds().size());

@@ -42,6 +42,7 @@ struct StepReport {
   int pairs = 0;         // broadphase pairs
   int manifolds = 0;
   int contactPoints = 0;
+  int cachedPairs = 0;   // manifolds kept from the last step without a narrowphase query
 };
 
 class World {

@@ -161,7 +161,7 @@ TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
   const Shape b = box(0.5, 0.5, 0.5);
   Pose pose{Vec3(0, 0.49, 0), Quat::Identity()};
   cache.beginStep();
-  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose));
+  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose), 1.0);
   ASSERT_EQ(cache.manifolds().size(), 1u);
   uint32_t ids[4];
   for (int i = 0; i < 4; ++i) ids[i] = cache.manifolds()[0].points[i].id;
@@ -170,7 +170,7 @@ TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
   // A small slide keeps every point; its impulse comes along.
   pose.p.x() += 0.005;
   cache.beginStep();
-  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose));
+  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose), 1.0);
   const Manifold& m = cache.manifolds()[0];
   int kept = 0;
   for (int i = 0; i < m.count; ++i)
@@ -187,7 +187,7 @@ TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
   // A jump of 30 cm: the same corners of the box, but elsewhere on the ground: all points are new.
   pose.p.x() += 0.3;
   cache.beginStep();
-  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose));
+  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose), 1.0);
   for (int i = 0; i < cache.manifolds()[0].count; ++i)
     for (int k = 0; k < 4; ++k) EXPECT_NE(cache.manifolds()[0].points[i].id, ids[k]);
 }
@@ -285,4 +285,64 @@ TEST(Narrowphase, SpeculativePointsWithinTheMargin) {
   ASSERT_EQ(sm.count, 1);
   EXPECT_NEAR(sm.p[0].depth, -0.01, 1e-9);
   EXPECT_LT((sm.p[0].pB - Vec3(0.7, 0, 1.2)).norm(), 1e-9);
+}
+
+// The pair cache's bound: every point fixed on B within the manifold's reach moves, relative to
+// A, by no more than pairShift() says, whatever the two bodies did.
+TEST(Manifold, PairShiftBoundsTheMotionOfEveryPoint) {
+  ManifoldCache cache;
+  const Shape b = box(0.5, 0.5, 0.5);
+  const Pose A0{Vec3(0.1, 0.2, -0.3), Rq(Vec3(0.2, -0.1, 0.4))};
+  const Pose B0{Vec3(0.3, 1.1, -0.2), Rq(Vec3(-0.3, 0.2, 0.1))};
+  cache.beginStep();
+  ContactPatch p;
+  p.add(ContactPoint{Vec3(0, 0.5, 0), Vec3(0, 0.5, 0), Vec3::UnitY(), 0});
+  cache.add(0, 1, A0, B0, 0.5, 0, p, b.boundingRadius());
+  const Manifold& m = cache.manifolds()[0];
+  uint64_t seed = 7;
+  auto uniform = [&] {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(seed >> 11) / 9007199254740992.0 * 2 - 1;
+  };
+  for (int trial = 0; trial < 200; ++trial) {
+    const double scale = trial < 100 ? 1e-3 : 0.3;  // small moves (the cache's range) and large ones
+    const Pose A{A0.p + scale * Vec3(uniform(), uniform(), uniform()), A0.q * Rq(scale * Vec3(uniform(), uniform(), uniform()))};
+    const Pose B{B0.p + scale * Vec3(uniform(), uniform(), uniform()), B0.q * Rq(scale * Vec3(uniform(), uniform(), uniform()))};
+    const double bound = pairShift(m, A, B);
+    for (int k = 0; k < 20; ++k) {
+      // A point of B (inside its bounding sphere), seen from A, then and now.
+      const Vec3 x = 0.5 * Vec3(uniform(), uniform(), uniform());
+      const Vec3 then = A0.unrotate(B0.apply(x) - A0.p), now = A.unrotate(B.apply(x) - A.p);
+      EXPECT_LE((now - then).norm(), bound + 1e-12) << "trial " << trial;
+    }
+  }
+}
+
+// A box at rest keeps its manifold without a narrowphase query; one that moves more than the
+// cache's shift gets new points.
+TEST(Manifold, ReuseKeepsPointsImpulsesAndRemeasuresDepth) {
+  ManifoldCache cache;
+  const Shape b = box(0.5, 0.5, 0.5);
+  Pose pose{Vec3(0, 0.49, 0), Quat::Identity()};
+  cache.beginStep();
+  cache.add(1, 0, pose, kGroundPose, 0.5, 0, collide(b, pose), b.boundingRadius());
+  cache.manifolds()[0].points[2].lambda = 0.75;
+  const Manifold first = cache.manifolds()[0];
+  pose.p.y() -= 0.0004;  // sinks 0.4 mm: within the cache's 1 mm
+  ASSERT_LT(pairShift(first, pose, kGroundPose), kPairCacheShift);
+  cache.beginStep();
+  const Manifold* old = cache.previous(1, 0);
+  ASSERT_NE(old, nullptr);
+  cache.reuse(*old, pose, kGroundPose);
+  const Manifold& m = cache.manifolds()[0];
+  ASSERT_EQ(m.count, first.count);
+  for (int i = 0; i < m.count; ++i) {
+    EXPECT_EQ(m.points[i].id, first.points[i].id);
+    EXPECT_EQ(m.points[i].age, first.points[i].age + 1);
+    EXPECT_NEAR(m.points[i].depth, first.points[i].depth + 0.0004, 1e-12);
+  }
+  EXPECT_EQ(m.points[2].lambda, 0.75);
+  // Tipped by 0.2 degrees about a bottom edge: 1.7 mm at the far corners, beyond the cache.
+  pose.q = Rq(Vec3(0, 0, 0.0035));
+  EXPECT_GT(pairShift(m, pose, kGroundPose), kPairCacheShift);
 }

@@ -26,9 +26,9 @@ std::string algoName(const ::testing::TestParamInfo<Algorithm>& i) { return algo
 
 }  // namespace
 
-// Free fall: the stepping is symplectic Euler, so after N steps of h
-//   v_N = v0 + N h g,  x_N = x0 + N h v0 + h² g N(N+1)/2
-// exactly, which is the closed form x0 + v0 t + g t²/2 up to g h t / 2.
+// Free fall: the stepping is symplectic Euler over M = N n (sub-)steps of hs = h/n, so
+//   v_N = v0 + N h g,  x_N = x0 + N h v0 + hs² g M(M+1)/2
+// exactly, which is the closed form x0 + v0 t + g t²/2 up to g hs t / 2.
 TEST_P(EveryAlgorithm, FreeFallMatchesTheClosedForm) {
   const Scene s = sceneFrom(R"({"bodies": [{"name": "ball", "shape": {"type": "sphere", "radius": 0.5},
       "position": [1, 100, -2], "velocity": [3, 4, -1]}]})");
@@ -36,14 +36,15 @@ TEST_P(EveryAlgorithm, FreeFallMatchesTheClosedForm) {
   World w(s.model, st, s.initial);
   const int N = 120;
   for (int k = 0; k < N; ++k) w.step();
-  const double h = st.dt, t = N * h;
+  const double h = st.dt, t = N * h, hs = h / st.substeps;
+  const int M = N * st.substeps;
   const Vec3 g(0, -9.81, 0), x0(1, 100, -2), v0(3, 4, -1);
   const BodyState& b = w.state().bodies[0];
-  const Vec3 xDiscrete = x0 + N * h * v0 + h * h * g * (N * (N + 1) / 2.0);
+  const Vec3 xDiscrete = x0 + N * h * v0 + hs * hs * g * (M * (M + 1) / 2.0);
   EXPECT_LT((b.v - (v0 + t * g)).norm(), 1e-12);
   EXPECT_LT((b.x - xDiscrete).norm(), 1e-11);
   const Vec3 xExact = x0 + t * v0 + 0.5 * t * t * g;
-  EXPECT_NEAR((b.x - xExact).norm(), 0.5 * g.norm() * h * t, 1e-9);
+  EXPECT_NEAR((b.x - xExact).norm(), 0.5 * g.norm() * hs * t, 1e-9);
   EXPECT_NEAR(w.state().time, t, 1e-12);
 }
 
@@ -75,7 +76,11 @@ TEST_P(EveryAlgorithm, SpinAboutAPrincipalAxisMatchesTheClosedForm) {
 }
 
 // Two free spheres collide off-centre, with friction: the impulses are equal and opposite and
-// act at one point, so linear and angular momentum (about the origin) are conserved.
+// act at one point, so linear and angular momentum (about the origin) are conserved. A4 and A5
+// hold a contact's Jacobian for the whole step (IV.3.2) while the spheres move on in the
+// sub-steps, so the later sub-steps' impulses act at last sub-step's arms: angular momentum is
+// then kept only to the order of that approximation (measured: 1.2e-3 of L at h = 1/60).
+
 TEST_P(EveryAlgorithm, CollisionConservesMomentum) {
   const Scene s = sceneFrom(R"({"gravity": [0, 0, 0], "bodies": [
       {"name": "a", "shape": {"type": "sphere", "radius": 0.5}, "position": [-2, 0.3, 0],
@@ -103,7 +108,8 @@ TEST_P(EveryAlgorithm, CollisionConservesMomentum) {
   ASSERT_TRUE(touched);
   momentum(p1, L1);
   EXPECT_LT((p1 - p0).norm(), 1e-12 * p0.norm());
-  EXPECT_LT((L1 - L0).norm(), 1e-12 * L0.norm());
+  const bool heldJacobians = GetParam() == Algorithm::A4 || GetParam() == Algorithm::A5;
+  EXPECT_LT((L1 - L0).norm(), (heldJacobians ? 2e-3 : 1e-12) * L0.norm());
   // And the collision did something: both bodies' velocities changed.
   EXPECT_GT((w.state().bodies[1].v - s.initial.bodies[1].v).norm(), 0.5);
 }
@@ -121,7 +127,7 @@ TEST_P(EveryAlgorithm, FastImpactNeitherSinksNorBounces) {
     w.step();
     const double y = w.state().bodies[1].x.y();
     maxPen = std::max(maxPen, w.maxPenetration());
-    if (y < 0.25) landed = true;
+    if (y < 0.25 && std::abs(w.state().bodies[1].v.y()) < 1) landed = true;  // stopped near the ground
     if (landed) highestAfter = std::max(highestAfter, y);
     lowest = std::min(lowest, y);
   }
@@ -146,11 +152,30 @@ TEST_P(EveryAlgorithm, Deterministic) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Algorithms, EveryAlgorithm, ::testing::Values(Algorithm::A1, Algorithm::A2), algoName);
+INSTANTIATE_TEST_SUITE_P(Algorithms, EveryAlgorithm,
+                         ::testing::Values(Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5),
+                         algoName);
 
 TEST(World, NonFiniteStateIsReported) {
   Scene s = sceneFrom(R"({"bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.5}}]})");
   s.initial.bodies[0].v.x() = std::numeric_limits<double>::quiet_NaN();
   World w(s.model, settingsFor(Algorithm::A2), s.initial);
   EXPECT_FALSE(w.step().finite);
+}
+
+// A stack at rest keeps its manifolds from step to step (the pair cache) instead of querying the
+// narrowphase again, and stays where it is.
+TEST(World, RestingStackReusesItsManifolds) {
+  const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/stack.json");
+  World w(s.model, settingsFor(Algorithm::A2), s.initial);
+  int cached = 0, manifolds = 0;
+  for (int k = 0; k < 120; ++k) {
+    const StepReport& r = w.step();
+    cached = r.cachedPairs;
+    manifolds = r.manifolds;
+  }
+  EXPECT_EQ(manifolds, 5);  // the ground and four box-on-box faces
+  EXPECT_EQ(cached, manifolds);
+  for (size_t i = 0; i < s.model.bodies.size(); ++i)
+    EXPECT_LT((w.state().bodies[i].x - s.initial.bodies[i].x).norm(), 0.01) << s.model.bodies[i].name;
 }

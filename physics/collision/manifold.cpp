@@ -1,6 +1,7 @@
 #include "physics/collision/manifold.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace substep {
@@ -17,20 +18,52 @@ void ManifoldCache::clear() {
   cursor_ = 0;
 }
 
-void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, double friction, double restitution,
-                        const ContactPatch& patch) {
+namespace {
+
+Vec3 relativePosition(const Pose& A, const Pose& B) { return A.unrotate(B.p - A.p); }
+Quat relativeOrientation(const Pose& A, const Pose& B) { return A.q.conjugate() * B.q; }
+
+}  // namespace
+
+double pairShift(const Manifold& m, const Pose& poseA, const Pose& poseB) {
+  // A point x fixed on B sits at relQ x + relP in A's frame; since detection it has moved by at
+  // most |ΔrelP| + θ |x|, θ the angle of the relative turn.
+  const Quat turn = m.relQ.conjugate() * relativeOrientation(poseA, poseB);
+  const double theta = 2 * std::atan2(turn.vec().norm(), std::abs(turn.w()));
+  return (relativePosition(poseA, poseB) - m.relP).norm() + theta * m.reach;
+}
+
+const Manifold* ManifoldCache::previous(int a, int b) {
   // Pairs arrive ordered by their unordered key (min, max); last step's list is in the same order.
   const auto key = [](const Manifold& m) { return std::make_pair(std::min(m.a, m.b), std::max(m.a, m.b)); };
   const auto k = std::make_pair(std::min(a, b), std::max(a, b));
   while (cursor_ < previous_.size() && key(previous_[cursor_]) < k) ++cursor_;
-  const Manifold* old = nullptr;
-  if (cursor_ < previous_.size() && previous_[cursor_].a == a && previous_[cursor_].b == b) old = &previous_[cursor_];
+  if (cursor_ < previous_.size() && previous_[cursor_].a == a && previous_[cursor_].b == b) return &previous_[cursor_];
+  return nullptr;
+}
+
+void ManifoldCache::reuse(const Manifold& old, const Pose& poseA, const Pose& poseB) {
+  Manifold m = old;  // detection pose kept: the shift is measured from there, so it cannot creep
+  for (int i = 0; i < m.count; ++i) {
+    ManifoldPoint& p = m.points[i];
+    p.depth = -(poseA.apply(p.localA) - poseB.apply(p.localB)).dot(poseB.rotate(p.localN));
+    ++p.age;
+  }
+  current_.push_back(m);
+}
+
+void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, double friction, double restitution,
+                        const ContactPatch& patch, double reach) {
+  const Manifold* old = previous(a, b);
 
   Manifold m;
   m.a = a;
   m.b = b;
   m.friction = friction;
   m.restitution = restitution;
+  m.relP = relativePosition(poseA, poseB);
+  m.relQ = relativeOrientation(poseA, poseB);
+  m.reach = reach;
   bool taken[kMaxManifoldPoints] = {false, false, false, false};
   for (int i = 0; i < patch.count && m.count < kMaxManifoldPoints; ++i) {
     const ContactPoint& c = patch.p[i];

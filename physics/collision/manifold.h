@@ -14,6 +14,10 @@ namespace substep {
 
 constexpr int kMaxManifoldPoints = 4;
 constexpr double kMatchDistance = 0.02;  // [m]
+// A pair whose relative pose has moved less than this since its manifold was detected keeps the
+// manifold (points fixed on the bodies, depths re-measured) instead of running the narrowphase
+// again, as Jolt's body-pair cache does: no point of either body has moved by more [m].
+constexpr double kPairCacheShift = 1e-3;
 
 struct ManifoldPoint {
   Vec3 localA = Vec3::Zero();  // σ̌a: the point on A, in A's frame [m]
@@ -32,7 +36,15 @@ struct Manifold {
   int count = 0;
   ManifoldPoint points[kMaxManifoldPoints];
   double frictionLambda[3] = {0, 0, 0};  // the pair's friction impulses of the last step (t1, t2, twist)
+  Vec3 relP = Vec3::Zero();    // B's origin in A's frame when the narrowphase made these points
+  Quat relQ = Quat::Identity();  // B's orientation relative to A then
+  double reach = 0;            // the larger distance of a point of either body from its origin that
+                               // the points can lie at (bounds how far a relative turn moves one) [m]
 };
+
+// How far any point of the pair (within `reach` of its body's origin) has moved relative to the
+// other body since `m` was detected: an upper bound [m].
+double pairShift(const Manifold& m, const Pose& poseA, const Pose& poseB);
 
 // Builds this step's manifolds from narrowphase patches, matching them with last step's.
 class ManifoldCache {
@@ -41,7 +53,12 @@ class ManifoldCache {
   // Adds the manifold of pair (a, b) from `patch` (world points). Pairs must come in increasing
   // order of (min(a,b), max(a,b)) each step, so finding last step's manifold is a merge.
   void add(int a, int b, const Pose& poseA, const Pose& poseB, double friction, double restitution,
-           const ContactPatch& patch);
+           const ContactPatch& patch, double reach);
+  // Last step's manifold of pair (a, b) (same order rule as add), or null.
+  const Manifold* previous(int a, int b);
+  // Keeps last step's manifold `old` for this step: same points on the bodies, depths measured at
+  // the current poses, ages advanced, impulses kept. Call in the pair order of add().
+  void reuse(const Manifold& old, const Pose& poseA, const Pose& poseB);
   const std::vector<Manifold>& manifolds() const { return current_; }
   std::vector<Manifold>& manifolds() { return current_; }
   void clear();

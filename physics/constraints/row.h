@@ -51,6 +51,7 @@ struct SolveUnit {
 struct BlockData {
   Eigen::Matrix4d K = Eigen::Matrix4d::Zero();     // the block of Γ (unscaled M̌⁻¹)
   Eigen::Matrix4d invK = Eigen::Matrix4d::Zero();  // its inverse (contact blocks: of K regularised)
+  int lastMask = -1;  // contact blocks: the proper active set that fitted last (bit i: row i pushes)
 };
 
 // Σλ of a friction row's normal rows: what its bounds scale with.

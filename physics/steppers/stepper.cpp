@@ -18,10 +18,39 @@ void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>
 
 namespace {
 
+// Solves A x = r in place (x holds r on entry) for n <= 4 by Cholesky; false if A is not
+// positive definite to working precision (a singular subset of coplanar points). Eigen's
+// dynamic-size LDLT cost a fifth of a pyramid step here.
+bool solveSmall(double (&A)[4][4], double (&x)[4], int n) {
+  double L[4][4];
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j <= i; ++j) {
+      double sum = A[i][j];
+      for (int k = 0; k < j; ++k) sum -= L[i][k] * L[j][k];
+      if (i == j) {
+        if (!(sum > 1e-12 * A[i][i])) return false;
+        L[i][i] = std::sqrt(sum);
+      } else {
+        L[i][j] = sum / L[j][j];
+      }
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < i; ++k) x[i] -= L[i][k] * x[k];
+    x[i] /= L[i][i];
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    for (int k = i + 1; k < n; ++k) x[i] -= L[k][i] * x[k];
+    x[i] /= L[i][i];
+  }
+  return true;
+}
+
 // A contact block: the normal rows of one manifold, λ >= 0 each. Finds the increment Δ with
 //   λ + Δ >= 0,  w = KΔ - b >= 0,  (λ + Δ)ᵢ wᵢ = 0     (b = cBias β - cVel J̌v̌)
-// trying every point pushing first (the precomputed inverse), then smaller active sets.
-void solveContactBlock(const SolveUnit& u, const BlockData& d, Row* rows, const double* b, double* delta) {
+// trying every point pushing first (the precomputed inverse), then the active set that fitted
+// last time (it rarely changes from one sweep to the next), then every smaller set by size.
+void solveContactBlock(const SolveUnit& u, BlockData& d, Row* rows, const double* b, double* delta) {
   const int k = u.size;
   double lam[4];
   for (int i = 0; i < k; ++i) lam[i] = rows[u.first + i].lambda;
@@ -34,39 +63,42 @@ void solveContactBlock(const SolveUnit& u, const BlockData& d, Row* rows, const 
     for (int i = 0; i < k; ++i) delta[i] = full[i];
     return;
   }
-  // Active sets by decreasing size; the rows left out drop to λ = 0 (Δ = -λ) and must not pull.
+  // Rows outside the active set S drop to λ = 0 (Δ = -λ) and must not pull; rows in S solve
+  // their block exactly and must stay >= 0.
+  auto fits = [&](int mask) {
+    int S[4], N[4], ns = 0, nn = 0;
+    for (int i = 0; i < k; ++i) (mask >> i & 1 ? S[ns++] : N[nn++]) = i;
+    double D[4];
+    for (int i = 0; i < nn; ++i) D[N[i]] = -lam[N[i]];
+    if (ns > 0) {
+      double A[4][4], x[4];
+      for (int i = 0; i < ns; ++i) {
+        x[i] = b[S[i]];
+        for (int j = 0; j < nn; ++j) x[i] -= d.K(S[i], N[j]) * D[N[j]];
+        for (int j = 0; j < ns; ++j) A[i][j] = d.K(S[i], S[j]);
+      }
+      if (!solveSmall(A, x, ns)) return false;
+      for (int i = 0; i < ns; ++i) {
+        D[S[i]] = x[i];
+        if (!std::isfinite(x[i]) || lam[S[i]] + x[i] < 0) return false;
+      }
+    }
+    for (int i = 0; i < nn; ++i) {
+      double wi = -b[N[i]];
+      for (int j = 0; j < k; ++j) wi += d.K(N[i], j) * D[j];
+      if (wi < -1e-12 * (1 + std::abs(b[N[i]]))) return false;
+    }
+    for (int i = 0; i < k; ++i) delta[i] = D[i];
+    return true;
+  };
   const int fullMask = (1 << k) - 1;
-  for (int size = k - 1; size >= 0; --size) {
-    for (int mask = fullMask - 1; mask >= 0; --mask) {
-      if (__builtin_popcount(static_cast<unsigned>(mask)) != size) continue;
-      int S[4], N[4], ns = 0, nn = 0;
-      for (int i = 0; i < k; ++i) (mask >> i & 1 ? S[ns++] : N[nn++]) = i;
-      double D[4];
-      for (int i = 0; i < nn; ++i) D[N[i]] = -lam[N[i]];
-      if (ns > 0) {
-        Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 4, 4> A(ns, ns);
-        Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 4, 1> r(ns);
-        for (int i = 0; i < ns; ++i) {
-          r[i] = b[S[i]];
-          for (int j = 0; j < nn; ++j) r[i] -= d.K(S[i], N[j]) * D[N[j]];
-          for (int j = 0; j < ns; ++j) A(i, j) = d.K(S[i], S[j]);
-        }
-        const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 4, 1> x = A.ldlt().solve(r);
-        bool good = true;
-        for (int i = 0; i < ns; ++i) {
-          D[S[i]] = x[i];
-          good = good && std::isfinite(x[i]) && lam[S[i]] + x[i] >= 0;
-        }
-        if (!good) continue;
-      }
-      bool pulls = false;
-      for (int i = 0; i < nn && !pulls; ++i) {
-        double wi = -b[N[i]];
-        for (int j = 0; j < k; ++j) wi += d.K(N[i], j) * D[j];
-        pulls = wi < -1e-12 * (1 + std::abs(b[N[i]]));
-      }
-      if (pulls) continue;
-      for (int i = 0; i < k; ++i) delta[i] = D[i];
+  if (d.lastMask >= 0 && d.lastMask < fullMask && fits(d.lastMask)) return;
+  // The proper subsets of {0..3} by decreasing size (a table: popcount is a library call here).
+  static constexpr int kSubsets[15] = {14, 13, 11, 7, 12, 10, 9, 6, 5, 3, 8, 4, 2, 1, 0};
+  for (const int mask : kSubsets) {
+    if ((mask & fullMask) != mask || mask == fullMask || mask == d.lastMask) continue;
+    if (fits(mask)) {
+      d.lastMask = mask;
       return;
     }
   }
@@ -110,7 +142,7 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, do
       const double cv = r.velocityTarget ? cVelTarget : cVel;
       b[i] = cb * r.bias - cv * rowVelocity(r, v, w);
     }
-    const BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
+    BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
     if (u.kind == SolveUnit::Stable) {
       // Unbounded: Δλ = K⁻¹ b.
       for (int i = 0; i < u.size; ++i) {
