@@ -50,6 +50,38 @@ double boxGapLowerBound(const Vec3& hA, const Pose& A, const Vec3& hB, const Pos
   return best;
 }
 
+bool isRound(ShapeType t) { return t == ShapeType::Sphere || t == ShapeType::Capsule; }
+
+// The segment a sphere or capsule is the radius-neighbourhood of (a sphere's is a point).
+void coreSegment(const Shape& s, const Pose& pose, Vec3& p0, Vec3& p1) {
+  const Vec3 half = s.type == ShapeType::Capsule ? pose.rotate(Vec3(0, s.halfHeight, 0)) : Vec3::Zero();
+  p0 = pose.p - half;
+  p1 = pose.p + half;
+}
+
+// A lower bound on the distance between a sphere or capsule and a box: the largest gap along the
+// box's face axes and the axes across the capsule's segment and each box edge.
+double roundBoxGapLowerBound(const Shape& round, const Pose& poseR, const Vec3& h, const Pose& poseBox) {
+  Vec3 p0, p1;
+  coreSegment(round, poseR, p0, p1);
+  const Mat3 R = poseBox.q.toRotationMatrix();
+  const Vec3 seg = p1 - p0;
+  double best = -std::numeric_limits<double>::infinity();
+  auto axis = [&](const Vec3& L) {
+    const double a = L.dot(p0), b = L.dot(p1), c = L.dot(poseBox.p);
+    const double reach = h.x() * std::abs(L.dot(R.col(0))) + h.y() * std::abs(L.dot(R.col(1))) +
+                         h.z() * std::abs(L.dot(R.col(2)));
+    best = std::max(best, std::max(std::min(a, b) - round.radius - (c + reach), (c - reach) - (std::max(a, b) + round.radius)));
+  };
+  for (int i = 0; i < 3; ++i) axis(R.col(i));
+  for (int i = 0; i < 3; ++i) {
+    const Vec3 L = seg.cross(R.col(i));
+    const double n = L.norm();
+    if (n > 1e-9) axis(L / n);
+  }
+  return best;
+}
+
 // Closest points of segments [p0,p1] and [q0,q1] (clamped parameters).
 void closestPointsOfSegments(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1, Vec3& cp, Vec3& cq) {
   const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
@@ -355,6 +387,28 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
   if (sA.type == ShapeType::Box && sB.type == ShapeType::Box &&
       boxGapLowerBound(sA.halfExtents, poseA, sB.halfExtents, poseB) > margin)
     return;  // further apart than the margin: FCL would find no contact and no speculative point
+  if ((sA.type == ShapeType::Box && isRound(sB.type) && roundBoxGapLowerBound(sB, poseB, sA.halfExtents, poseA) > margin) ||
+      (sB.type == ShapeType::Box && isRound(sA.type) && roundBoxGapLowerBound(sA, poseA, sB.halfExtents, poseB) > margin))
+    return;
+  if (isRound(sA.type) && isRound(sB.type)) {
+    // Spheres and capsules are points and segments grown by a radius: the closest points of the
+    // core segments give the normal and the distance in closed form. libccd's GJK and EPA for
+    // these pairs were most of s1 on the ragdoll pile (docs/collision.md). Crossing cores (no
+    // direction) are left to FCL.
+    Vec3 a0, a1, b0, b1, cp, cq;
+    coreSegment(sA, poseA, a0, a1);
+    coreSegment(sB, poseB, b0, b1);
+    closestPointsOfSegments(a0, a1, b0, b1, cp, cq);
+    const Vec3 d = cp - cq;
+    const double len = d.norm();
+    if (len > kTouching) {
+      const double gap = len - sA.radius - sB.radius;
+      if (gap > margin) return;
+      const Vec3 n = d / len;  // from B to A
+      fromNormal(sA, poseA, sB, poseB, n, -gap, margin, 0.5 * ((cp - sA.radius * n) + (cq + sB.radius * n)), out);
+      return;
+    }
+  }
   const bool mesh = sB.type == ShapeType::TriangleMesh;
   const fcl::Transform3d tA = toFcl(compose(poseA, cA.offset)), tB = toFcl(compose(poseB, cB.offset));
   request_.num_max_contacts = mesh ? 64 : 4;
