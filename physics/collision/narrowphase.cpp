@@ -29,24 +29,44 @@ Pose compose(const Pose& a, const Pose& b) { return Pose{a.apply(b.p), a.q * b.q
 // (the faces of each box and the cross products of their edges). Positive only if they are apart.
 // Cheap next to FCL's collide-then-distance, which every neighbour pair within the broadphase's
 // reach (the 1 cm gaps of a pyramid row) would otherwise pay each step.
-double boxGapLowerBound(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B) {
+// axis, if given, receives the best axis (pointing from B to A) and isFace whether it is a face
+// normal rather than the cross product of two edges.
+double boxGapLowerBound(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, Vec3* bestOut = nullptr,
+                        bool* isFace = nullptr) {
   const Mat3 RA = A.q.toRotationMatrix(), RB = B.q.toRotationMatrix();
   const Vec3 d = B.p - A.p;
   double best = -std::numeric_limits<double>::infinity();
-  auto axis = [&](const Vec3& L) {
+  Vec3 bestAxis = Vec3::Zero();
+  bool bestFace = true;
+  auto axis = [&](const Vec3& L, bool face) {
     const double reach = hA.x() * std::abs(L.dot(RA.col(0))) + hA.y() * std::abs(L.dot(RA.col(1))) +
                          hA.z() * std::abs(L.dot(RA.col(2))) + hB.x() * std::abs(L.dot(RB.col(0))) +
                          hB.y() * std::abs(L.dot(RB.col(1))) + hB.z() * std::abs(L.dot(RB.col(2)));
-    best = std::max(best, std::abs(L.dot(d)) - reach);
+    const double gap = std::abs(L.dot(d)) - reach;
+    if (gap > best) {
+      best = gap;
+      bestAxis = L.dot(d) > 0 ? -L : L;
+      bestFace = face;
+    }
   };
-  for (int i = 0; i < 3; ++i) axis(RA.col(i));
-  for (int i = 0; i < 3; ++i) axis(RB.col(i));
+  for (int i = 0; i < 3; ++i) axis(RA.col(i), true);
+  for (int i = 0; i < 3; ++i) axis(RB.col(i), true);
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
       const Vec3 L = RA.col(i).cross(RB.col(j));
       const double n = L.norm();
-      if (n > 1e-6) axis(L / n);  // parallel edges: the face axes cover them
+      // Parallel edges: the face axes cover them. An edge axis wins only by a clear margin, so
+      // that a face contact (boxes stacked with a tiny turn) keeps its face normal.
+      if (n > 1e-6) {
+        const double before = best;
+        const Vec3 keep = bestAxis;
+        const bool keepFace = bestFace;
+        axis(L / n, false);
+        if (best < before + 1e-9) best = before, bestAxis = keep, bestFace = keepFace;
+      }
     }
+  if (bestOut) *bestOut = bestAxis;
+  if (isFace) *isFace = bestFace;
   return best;
 }
 
@@ -384,9 +404,22 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
     reducePatch(out);
     return;
   }
-  if (sA.type == ShapeType::Box && sB.type == ShapeType::Box &&
-      boxGapLowerBound(sA.halfExtents, poseA, sB.halfExtents, poseB) > margin)
-    return;  // further apart than the margin: FCL would find no contact and no speculative point
+  if (sA.type == ShapeType::Box && sB.type == ShapeType::Box) {
+    Vec3 axis;
+    bool face = true;
+    const double gap = boxGapLowerBound(sA.halfExtents, poseA, sB.halfExtents, poseB, &axis, &face);
+    if (gap > margin) return;  // further apart than the margin: no contact and no speculative point
+    if (gap > kTouching || (gap >= -kTouching && face)) {
+      // Apart within the margin, or touching face to face (boxes stacked by a generator): the
+      // separating axis is the normal and its gap the (negative) depth. The gap is a lower bound
+      // on the distance (exact when a face is closest), so a speculative point may stop the boxes
+      // a little early, never late. FCL would need collide and distance here (and for touching
+      // boxes a third, nudged collide): its box-box distance was the largest part of s1 on a
+      // collapsing pyramid.
+      fromNormal(sA, poseA, sB, poseB, axis, -gap, margin, 0.5 * (poseA.p + poseB.p), out);
+      return;
+    }
+  }
   if ((sA.type == ShapeType::Box && isRound(sB.type) && roundBoxGapLowerBound(sB, poseB, sA.halfExtents, poseA) > margin) ||
       (sB.type == ShapeType::Box && isRound(sA.type) && roundBoxGapLowerBound(sA, poseA, sB.halfExtents, poseB) > margin))
     return;

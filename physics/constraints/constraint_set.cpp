@@ -144,8 +144,9 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
     // K = block of Γ = J̌ M̌⁻¹ J̌ᵀ (unscaled, as the effective mass of single rows).
     d.K.setZero();
     for (int i = 0; i < u.size; ++i)
-      for (int k = 0; k < u.size; ++k)
-        d.K(i, k) = gammaEntry(rows[static_cast<size_t>(u.first + i)], rows[static_cast<size_t>(u.first + k)], mass.data());
+      for (int k = i; k < u.size; ++k)  // symmetric
+        d.K(i, k) = d.K(k, i) =
+            gammaEntry(rows[static_cast<size_t>(u.first + i)], rows[static_cast<size_t>(u.first + k)], mass.data());
     Eigen::Matrix4d K = d.K;
     for (int i = u.size; i < 4; ++i) K(i, i) = 1;  // pad to an invertible 4x4
     if (u.kind == SolveUnit::Contact) {
