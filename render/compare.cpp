@@ -89,9 +89,10 @@ std::vector<CompareSpec> parseCompareSpecs(const std::string& s) {
       else if (key == "preset") o.preset = value;
       else if (key == "warm" || key == "warm_start") o.warmStart = flag();
       else if (key == "block" || key == "block_solve") o.blockSolve = flag();
+      else if (key == "split" || key == "split_impulse") o.splitImpulse = flag();
       else
         throw std::invalid_argument("--compare \"" + panel + "\": unknown key \"" + key +
-                                    "\" (keys: n, m, kappa, tau, omega, dt, tolerance, slop, preset, warm, block)");
+                                    "\" (keys: n, m, kappa, tau, omega, dt, tolerance, slop, preset, warm, block, split)");
     }
     specs.push_back(spec);
   }

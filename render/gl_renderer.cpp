@@ -1,5 +1,6 @@
 #include "render/gl_renderer.h"
 
+#include "render/fxaa.h"
 #include "render/meshes.h"
 #include "render/text.h"
 
@@ -10,6 +11,7 @@
 #include <GL/glext.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -69,6 +71,17 @@ uniform vec3 uHorizon;
 uniform vec2 uFog;              // start, end [m]
 out vec4 fragColour;
 
+// The alpha carries the pixel's luma for the anti-aliasing on the CPU (render/fxaa.h): 0-127 in
+// bits 1-7, bit 0 set on faces that are smooth as drawn (the gridded ground). Multisampled without
+// it (COVERAGE_ALPHA), the alpha is 1, so that after the resolve it says how much the solids cover.
+float lumaAlpha(vec3 c, float smoothFace) {
+#if COVERAGE_ALPHA
+  return 1.0;
+#else
+  return (floor(clamp(dot(c, vec3(0.299, 0.587, 0.114)), 0.0, 1.0) * 127.0 + 0.5) * 2.0 + smoothFace) / 255.0;
+#endif
+}
+
 void main() {
 #if MODE == 2
   fragColour = vec4(1.0);
@@ -77,10 +90,12 @@ void main() {
   if (!gl_FrontFacing) n = -n;   // the inside of a bowl, or a mesh wound the other way
   vec3 v = normalize(uEye - vWorld);
 #if MODE == 1
-  fragColour = vec4(vColour * (0.55 + 0.45 * abs(dot(n, v))), 1.0);
+  vec3 shade = vColour * (0.55 + 0.45 * abs(dot(n, v)));
+  fragColour = vec4(shade, lumaAlpha(shade, 0.0));
 #else
   vec3 albedo = vColour;
-  if ((vFlags & 1) != 0 && n.y > 0.5) {
+  bool grid = (vFlags & 1) != 0 && n.y > 0.5;
+  if (grid) {
     // Anti-aliased grid lines every metre, stronger every five, fading where a pixel spans a line.
     vec2 w = fwidth(vWorld.xz);
     vec2 g1 = abs(fract(vWorld.xz - 0.5) - 0.5) / max(w, 1e-5);
@@ -109,15 +124,18 @@ void main() {
   float rim = 1.0 - max(dot(n, v), 0.0);
   col += vHighlight * rim * rim * vec3(1.0, 0.8, 0.2);
   col = mix(col, uHorizon, smoothstep(uFog.x, uFog.y, length(uEye - vWorld)));
-  fragColour = vec4(col, 1.0);
+  fragColour = vec4(col, lumaAlpha(col, grid ? 1.0 : 0.0));
 #endif
 #endif
 }
 )";
 
-// A triangle covering the viewport; the sky's colour follows the elevation of the view ray.
-// The sky, drawn after the resolve under what is there ("under" blending, see drawSky). Its
-// colour follows the elevation of the view ray; the ray of a far-plane point is affine in screen
+// The sky: a triangle covering the viewport at the far plane, drawn after the solids with the
+// depth test, so only the pixels they left uncovered pay for it (llvmpipe skips blocks whose depth
+// test fails before shading). Multisampled without FXAA it is drawn instead after the resolve,
+// single-sampled, under the solids ("under" blending by the alpha the solids left): cheaper than
+// a sky written to every sample, and silhouettes against it keep their coverage. Its colour
+// follows the elevation of the view ray; the ray of a far-plane point is affine in screen
 // position, so it is computed per vertex.
 const char* kSkyVS = R"(#version 330 core
 uniform mat4 uInvViewProj;
@@ -131,17 +149,23 @@ void main() {
 }
 )";
 
-const char* kSkyFS = R"(#version 330 core
+const char* kSkyFS = R"(
 in vec3 vRay;
 uniform vec3 uHorizon;
 out vec4 fragColour;
 void main() {
   float y = vRay.y * inversesqrt(dot(vRay, vRay));
   vec3 zenith = vec3(0.30, 0.45, 0.68), below = vec3(0.50, 0.52, 0.54);
-  // sqrt(y) rather than a pow: this pass covers the frame and llvmpipe pays per pixel.
+  // sqrt(y) rather than a pow: llvmpipe pays per pixel.
   vec3 up = mix(uHorizon, zenith, sqrt(max(y, 0.0)));
   vec3 down = mix(uHorizon, below, min(1.0, -y * 4.0));
-  fragColour = vec4(y > 0.0 ? up : down, 1.0);
+  vec3 c = y > 0.0 ? up : down;
+#if COVERAGE_ALPHA
+  fragColour = vec4(c, 1.0);  // drawn under the resolved solids
+#else
+  // Luma in the alpha, as the meshes write it (render/fxaa.h).
+  fragColour = vec4(c, floor(clamp(dot(c, vec3(0.299, 0.587, 0.114)), 0.0, 1.0) * 127.0 + 0.5) * 2.0 / 255.0);
+#endif
 }
 )";
 
@@ -240,11 +264,20 @@ struct TextVertex {
 struct GlRenderer::Impl {
   OSMesaContext ctx = nullptr;
   std::vector<uint8_t> dummy;  // OSMesa needs a buffer to make the context current; we draw into FBOs
-  std::vector<uint8_t> rowTemp;
   int width = 0, height = 0, samples = 1, shadowSize = 0;
-  GLuint msFbo = 0, msColour = 0, msDepth = 0;  // the scene's buffers (msFbo is outFbo without multisampling)
-  GLuint outFbo = 0, outColour = 0;
-  GLuint shadowFbo = 0, shadowTex = 0;
+  AntiAliasing antiAliasing = AntiAliasing::None;
+  bool skyUnder = false;  // multisampled without FXAA: the sky goes under the resolved solids
+  // The scene is drawn into drawFbo: msFbo (multisampled) resolved into sceneFbo by a blit, or
+  // sceneFbo itself without multisampling. The text goes on sceneFbo, which is read back.
+  GLuint sceneFbo = 0, sceneColour = 0, sceneDepth = 0;
+  GLuint msFbo = 0, msColour = 0, msDepth = 0;
+  GLuint drawFbo = 0;
+  std::vector<uint8_t> readback;        // the frame as GL holds it, rows bottom-up
+  std::vector<PixelRect> textRects;     // this frame's text panels, kept out of the anti-aliasing
+  struct ShadowMap {
+    GLuint fbo = 0, tex = 0;
+  };
+  std::vector<ShadowMap> shadowMaps;  // one per view of a frame, made on first use
   GLuint meshProg = 0, flatProg = 0, depthProg = 0, skyProg = 0, textProg = 0;
   GLuint instanceVbo = 0, emptyVao = 0, textVao = 0, textVbo = 0;
   std::vector<GpuMesh> primitives;
@@ -253,6 +286,17 @@ struct GlRenderer::Impl {
   std::string fontPath;
   std::map<int, std::unique_ptr<Font>> fonts;  // by pixel size
   std::map<int, GLuint> atlases;
+  FrameTimings* timings = nullptr;  // set while a timed frame is drawn
+  std::chrono::steady_clock::time_point mark;
+
+  // Timed frames: finishes the GL work so far and adds the time since the last lap to `slot`.
+  void lap(double FrameTimings::*slot) {
+    if (!timings) return;
+    glFinish();
+    const auto now = std::chrono::steady_clock::now();
+    timings->*slot += std::chrono::duration<double>(now - mark).count();
+    mark = now;
+  }
 
   void makeCurrent() {
     if (!OSMesaMakeCurrent(ctx, dummy.data(), GL_UNSIGNED_BYTE, 4, 4)) throw RenderError("OSMesaMakeCurrent failed");
@@ -382,33 +426,63 @@ struct GlRenderer::Impl {
     return ortho * view;
   }
 
-  void drawView(const DrawList& dl, const Viewport& vp) {
+  // The view's shadow map, made on first use (texture unit 0 when drawing the scene).
+  const ShadowMap& shadowMap(size_t view) {
+    while (shadowMaps.size() <= view) {
+      ShadowMap sm;
+      glGenTextures(1, &sm.tex);
+      glBindTexture(GL_TEXTURE_2D, sm.tex);
+      const int side = std::max(shadowSize, 1);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, side, side, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
+      if (shadowSize > 0) {
+        glGenFramebuffers(1, &sm.fbo);
+        glBindFramebuffer(GL_FRAMEBUFFER, sm.fbo);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, sm.tex, 0);
+        glDrawBuffer(GL_NONE);
+        glReadBuffer(GL_NONE);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+          throw RenderError("GL: the shadow map buffer is incomplete");
+      }
+      shadowMaps.push_back(sm);
+    }
+    return shadowMaps[view];
+  }
+
+  // Depth of the view's shadow casters from the light.
+  void drawShadowMap(const DrawList& dl, const ShadowMap& sm) {
+    float texelWorld = 0;
+    const Mat4f light = lightMatrix(dl, texelWorld);
+    glBindFramebuffer(GL_FRAMEBUFFER, sm.fbo);
+    glViewport(0, 0, shadowSize, shadowSize);
+    glDisable(GL_SCISSOR_TEST);
+    glEnable(GL_DEPTH_TEST);
+    glDepthMask(GL_TRUE);
+    glClear(GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_POLYGON_OFFSET_FILL);
+    glPolygonOffset(1.5f, 2.0f);
+    glUseProgram(depthProg);
+    glUniformMatrix4fv(glGetUniformLocation(depthProg, "uViewProj"), 1, GL_FALSE, light.data());
+    drawInstances(dl.solids, dl, true, dl.boundsCentre - 1000 * dl.lightDirection);
+    glDisable(GL_POLYGON_OFFSET_FILL);
+  }
+
+  // The solids, the sky (unless it goes under them after the resolve) and the overlays of a view
+  // into drawFbo, which is bound and was cleared for the whole frame.
+  void drawScene(const DrawList& dl, const Viewport& vp, const ShadowMap& sm) {
     const float aspect = static_cast<float>(vp.width) / static_cast<float>(std::max(vp.height, 1));
     const Mat4f viewProj = dl.camera.projection(aspect) * dl.camera.view();
     float texelWorld = 0;
     const Mat4f light = lightMatrix(dl, texelWorld);
     const bool shadows = shadowSize > 0;
-
-    if (shadows) {
-      glBindFramebuffer(GL_FRAMEBUFFER, shadowFbo);
-      glViewport(0, 0, shadowSize, shadowSize);
-      glDisable(GL_SCISSOR_TEST);
-      glEnable(GL_DEPTH_TEST);
-      glDepthMask(GL_TRUE);
-      glClear(GL_DEPTH_BUFFER_BIT);
-      glEnable(GL_POLYGON_OFFSET_FILL);
-      glPolygonOffset(1.5f, 2.0f);
-      glUseProgram(depthProg);
-      glUniformMatrix4fv(glGetUniformLocation(depthProg, "uViewProj"), 1, GL_FALSE, light.data());
-      drawInstances(dl.solids, dl, true, dl.boundsCentre - 1000 * dl.lightDirection);
-      glDisable(GL_POLYGON_OFFSET_FILL);
-    }
-
-    glBindFramebuffer(GL_FRAMEBUFFER, msFbo);
     const int glY = height - (vp.y + vp.height);  // GL counts rows from the bottom
     glViewport(vp.x, glY, vp.width, vp.height);
-    // A clear of the whole surface is nearly free in llvmpipe (done per tile while binning); a
-    // scissored one is a real pass, so the scissor is only on for a panel of a grid.
+    // The scissor only matters for the overlays' depth clear in a panel of a grid.
     const bool whole = vp.x == 0 && vp.y == 0 && vp.width == width && vp.height == height;
     if (whole) {
       glDisable(GL_SCISSOR_TEST);
@@ -417,15 +491,13 @@ struct GlRenderer::Impl {
       glEnable(GL_SCISSOR_TEST);
     }
     glDepthMask(GL_TRUE);
-    glClearDepth(1.0);
-    glClear(GL_DEPTH_BUFFER_BIT);
 
     // Solids.
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LESS);
     glUseProgram(meshProg);
     glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_2D, shadowTex);
+    glBindTexture(GL_TEXTURE_2D, sm.tex);
     glUniform1i(glGetUniformLocation(meshProg, "uShadowMap"), 0);
     glUniformMatrix4fv(glGetUniformLocation(meshProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
     glUniformMatrix4fv(glGetUniformLocation(meshProg, "uLightMatrix"), 1, GL_FALSE, light.data());
@@ -440,6 +512,17 @@ struct GlRenderer::Impl {
     glUniform2fv(glGetUniformLocation(meshProg, "uFog"), 1, fog);
     drawInstances(dl.solids, dl, false, dl.camera.eye);
 
+    // The sky where no solid is: at the far plane, passing the depth test only where the depth
+    // is still the cleared 1.
+    if (!skyUnder) {
+      glDisable(GL_CULL_FACE);
+      glDepthFunc(GL_LEQUAL);
+      glDepthMask(GL_FALSE);
+      drawSky(dl, vp);
+      glDepthFunc(GL_LESS);
+      glDepthMask(GL_TRUE);
+    }
+
     // Overlays show through the bodies (contacts lie between them), but not through each other.
     if (!dl.overlays.empty()) {
       glClear(GL_DEPTH_BUFFER_BIT);
@@ -451,10 +534,7 @@ struct GlRenderer::Impl {
     glDisable(GL_SCISSOR_TEST);
   }
 
-  // The sky behind a resolved view: the solids were drawn over transparent black, so after the
-  // resolve a pixel's alpha is how much of it they cover, and the sky fills the rest. Drawn
-  // single-sampled, this costs a third of a multisampled sky pass at 720p, and silhouettes
-  // against the sky keep their anti-aliasing.
+  // The sky over a view's viewport (depth and blending as the caller set them).
   void drawSky(const DrawList& dl, const Viewport& vp) {
     const float aspect = static_cast<float>(vp.width) / static_cast<float>(std::max(vp.height, 1));
     const Mat4f inv = (dl.camera.projection(aspect) * dl.camera.view()).inverse();
@@ -464,6 +544,7 @@ struct GlRenderer::Impl {
     glUniform3fv(glGetUniformLocation(skyProg, "uHorizon"), 1, kHorizon.data());
     glBindVertexArray(emptyVao);
     glDrawArrays(GL_TRIANGLES, 0, 3);
+    glBindVertexArray(0);
   }
 
   // Text of one view: the HUD top left on a dark panel, the label top centre, the footer bottom left.
@@ -472,7 +553,10 @@ struct GlRenderer::Impl {
     Font& small = font(px);
     const float pad = std::round(0.5f * px);
     std::vector<TextVertex> solid, glyphsSmall, glyphsLarge;
-    auto rect = [](std::vector<TextVertex>& v, float x0, float y0, float x1, float y1, const Vec4f& c) {
+    auto rect = [this](std::vector<TextVertex>& v, float x0, float y0, float x1, float y1, const Vec4f& c) {
+      // Text panels are sharp already: the anti-aliasing leaves them (and a pixel around) alone.
+      textRects.push_back({static_cast<int>(std::floor(x0)) - 1, static_cast<int>(std::floor(y0)) - 1,
+                           static_cast<int>(std::ceil(x1)) + 1, static_cast<int>(std::ceil(y1)) + 1});
       const TextVertex a{x0, y0, -1, -1, c[0], c[1], c[2], c[3]}, b{x1, y0, -1, -1, c[0], c[1], c[2], c[3]},
                        d{x1, y1, -1, -1, c[0], c[1], c[2], c[3]}, e{x0, y1, -1, -1, c[0], c[1], c[2], c[3]};
       v.insert(v.end(), {a, b, d, a, d, e});
@@ -571,50 +655,46 @@ GlRenderer::GlRenderer(int width, int height, const RendererOptions& options)
       glRenderbufferStorage(GL_RENDERBUFFER, format, width, height);
     return rb;
   };
-  // Multisampled: the scene goes into renderbuffers and is resolved by a blit into the output.
-  // Not multisampled: the output buffer itself gets the depth buffer and the scene.
-  glGenFramebuffers(1, &m.outFbo);
-  glBindFramebuffer(GL_FRAMEBUFFER, m.outFbo);
-  m.outColour = renderbuffer(GL_RGBA8, 0);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, m.outColour);
+  m.antiAliasing = options.antiAliasing;
+  auto complete = [](const char* what) {
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      throw RenderError(std::string("GL: the ") + what + " buffer is incomplete");
+  };
+  // The frame that gets the text and is read back; without multisampling the scene is drawn
+  // into it directly.
+  glGenFramebuffers(1, &m.sceneFbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, m.sceneFbo);
+  m.sceneColour = renderbuffer(GL_RGBA8, 0);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, m.sceneColour);
   if (m.samples > 1) {
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw RenderError("GL: the output buffer is incomplete");
+    complete("output");
     glGenFramebuffers(1, &m.msFbo);
     glBindFramebuffer(GL_FRAMEBUFFER, m.msFbo);
     m.msColour = renderbuffer(GL_RGBA8, m.samples);
+    GLint actual = m.samples;  // what the driver made of the request (llvmpipe: 4 for any count above 1)
+    glGetRenderbufferParameteriv(GL_RENDERBUFFER, GL_RENDERBUFFER_SAMPLES, &actual);
+    m.samples = std::max<int>(actual, 2);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, m.msColour);
+    m.msDepth = renderbuffer(GL_DEPTH_COMPONENT24, m.samples);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, m.msDepth);
+    complete("multisampled scene");
+    m.drawFbo = m.msFbo;
   } else {
-    m.msFbo = m.outFbo;
+    m.sceneDepth = renderbuffer(GL_DEPTH_COMPONENT24, 0);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, m.sceneDepth);
+    complete("scene");
+    m.drawFbo = m.sceneFbo;
   }
-  m.msDepth = renderbuffer(GL_DEPTH_COMPONENT24, m.samples > 1 ? m.samples : 0);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, m.msDepth);
-  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw RenderError("GL: the frame buffer is incomplete");
+  m.shadowMap(0);
 
-  glGenTextures(1, &m.shadowTex);
-  glBindTexture(GL_TEXTURE_2D, m.shadowTex);
-  const int side = std::max(m.shadowSize, 1);
-  glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, side, side, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
-  if (m.shadowSize > 0) {
-    glGenFramebuffers(1, &m.shadowFbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, m.shadowFbo);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, m.shadowTex, 0);
-    glDrawBuffer(GL_NONE);
-    glReadBuffer(GL_NONE);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      throw RenderError("GL: the shadow map buffer is incomplete");
-  }
-
-  auto meshVariant = [](int mode) { return "#version 330 core\n#define MODE " + std::to_string(mode) + "\n" + kMeshFS; };
+  m.skyUnder = m.samples > 1 && m.antiAliasing == AntiAliasing::None;
+  const std::string header =
+      std::string("#version 330 core\n#define COVERAGE_ALPHA ") + (m.skyUnder ? "1" : "0") + "\n";
+  auto meshVariant = [&](int mode) { return header + "#define MODE " + std::to_string(mode) + "\n" + kMeshFS; };
   m.meshProg = link(kMeshVS, meshVariant(0).c_str(), "mesh");
   m.flatProg = link(kMeshVS, meshVariant(1).c_str(), "overlay");
   m.depthProg = link(kMeshVS, meshVariant(2).c_str(), "shadow");
-  m.skyProg = link(kSkyVS, kSkyFS, "sky");
+  m.skyProg = link(kSkyVS, (header + kSkyFS).c_str(), "sky");
   m.textProg = link(kTextVS, kTextFS, "text");
 
   glGenBuffers(1, &m.instanceVbo);
@@ -654,7 +734,9 @@ std::string GlRenderer::glInfo() const {
   impl_->makeCurrent();
   const auto* r = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   const auto* v = reinterpret_cast<const char*>(glGetString(GL_VERSION));
-  return std::string(r ? r : "?") + ", GL " + (v ? v : "?") + ", " + std::to_string(impl_->samples) + "x MSAA";
+  std::string aa = impl_->samples > 1 ? std::to_string(impl_->samples) + "x MSAA" : std::string();
+  if (impl_->antiAliasing == AntiAliasing::Fxaa) aa += aa.empty() ? "FXAA" : " + FXAA";
+  return std::string(r ? r : "?") + ", GL " + (v ? v : "?") + ", " + (aa.empty() ? "no anti-aliasing" : aa);
 }
 
 Image GlRenderer::render(const DrawList& list) { return render({View{&list, Viewport{0, 0, width_, height_}}}); }
@@ -665,52 +747,83 @@ Image GlRenderer::render(const std::vector<View>& views) {
   return img;
 }
 
-void GlRenderer::render(const std::vector<View>& views, Image& img) {
+void GlRenderer::render(const std::vector<View>& views, Image& img, FrameTimings* timings) {
   Impl& m = *impl_;
   m.makeCurrent();
+  m.timings = timings;
+  if (timings) {
+    *timings = FrameTimings{};
+    glFinish();
+    m.mark = std::chrono::steady_clock::now();
+  }
   glDisable(GL_BLEND);
-  // Transparent black, so that after the resolve alpha says how much of a pixel the solids cover.
-  // (A whole-surface clear costs next to nothing in llvmpipe: it is done per tile while binning.)
-  glBindFramebuffer(GL_FRAMEBUFFER, m.msFbo);
+  // Shadow maps first, one per view: llvmpipe draws a frame buffer's work when another is bound,
+  // so a clear followed by a switch to the shadow map would be a real pass over the buffer, while
+  // a clear followed by drawing is done per tile as it is drawn (next to free).
+  if (m.shadowSize > 0)
+    for (size_t i = 0; i < views.size(); ++i) m.drawShadowMap(*views[i].list, m.shadowMap(i));
+  m.lap(&FrameTimings::shadow);
+  // One clear of the whole surface (colour and depth) for every view: panels do not overlap. The
+  // sky then covers what the solids leave; drawn under them after the resolve, it needs the
+  // alpha cleared to 0 (nothing covered).
+  glBindFramebuffer(GL_FRAMEBUFFER, m.drawFbo);
   glDisable(GL_SCISSOR_TEST);
-  glClearColor(0, 0, 0, 0);
-  glClear(GL_COLOR_BUFFER_BIT);
-  for (const View& v : views) m.drawView(*v.list, v.viewport);
+  glViewport(0, 0, width_, height_);
+  glClearColor(0, 0, 0, m.skyUnder ? 0.0f : 1.0f);
+  glClearDepth(1.0);
+  glDepthMask(GL_TRUE);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  for (size_t i = 0; i < views.size(); ++i) m.drawScene(*views[i].list, views[i].viewport, m.shadowMap(i));
+  m.lap(&FrameTimings::scene);
 
   if (m.samples > 1) {
     glBindFramebuffer(GL_READ_FRAMEBUFFER, m.msFbo);
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, m.outFbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, m.sceneFbo);
     glBlitFramebuffer(0, 0, width_, height_, 0, 0, width_, height_, GL_COLOR_BUFFER_BIT, GL_NEAREST);
   }
-  glBindFramebuffer(GL_FRAMEBUFFER, m.outFbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, m.sceneFbo);
   glDisable(GL_DEPTH_TEST);
   glDisable(GL_CULL_FACE);
   glDisable(GL_SCISSOR_TEST);
   glEnable(GL_BLEND);
-  glBlendFunc(GL_ONE_MINUS_DST_ALPHA, GL_ONE);  // the sky under what is there; alpha ends at 1
-  for (const View& v : views) m.drawSky(*v.list, v.viewport);
+  if (m.skyUnder) {
+    glBlendFunc(GL_ONE_MINUS_DST_ALPHA, GL_ONE);  // the sky under what is there; alpha ends at 1
+    for (const View& v : views) m.drawSky(*v.list, v.viewport);
+  }
+  if (m.samples > 1) m.lap(&FrameTimings::resolve);
   glViewport(0, 0, width_, height_);
   glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+  m.textRects.clear();
   for (const View& v : views) m.drawText(*v.list, v.viewport);
   glDisable(GL_BLEND);
+  m.lap(&FrameTimings::text);
 
-  const GLuint readFbo = m.outFbo;
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, readFbo);
-  if (img.width != width_ || img.height != height_) img = Image(width_, height_);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
-  if (const GLenum err = glGetError(); err != GL_NO_ERROR) throw RenderError("GL error " + std::to_string(err) + " while drawing");
-  // GL's rows run bottom-up: swap them in place.
   const size_t stride = static_cast<size_t>(width_) * 4;
-  m.rowTemp.resize(stride);
-  for (int y = 0; y < height_ / 2; ++y) {
-    uint8_t* a = &img.rgba[static_cast<size_t>(y) * stride];
-    uint8_t* b = &img.rgba[static_cast<size_t>(height_ - 1 - y) * stride];
-    std::memcpy(m.rowTemp.data(), a, stride);
-    std::memcpy(a, b, stride);
-    std::memcpy(b, m.rowTemp.data(), stride);
+  m.readback.resize(stride * static_cast<size_t>(height_));
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, m.sceneFbo);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, m.readback.data());
+  if (const GLenum err = glGetError(); err != GL_NO_ERROR) throw RenderError("GL error " + std::to_string(err) + " while drawing");
+  m.lap(&FrameTimings::readback);
+  // GL's rows run bottom-up: the image's row y is GL's row height - 1 - y.
+  const uint8_t* top = m.readback.data() + stride * static_cast<size_t>(height_ - 1);
+  if (m.antiAliasing == AntiAliasing::Fxaa) {
+    const FxaaStats st = fxaa(top, -static_cast<long>(stride), width_, height_, img, m.textRects);
+    if (timings) timings->blendedPixels = st.edgePixels;
+  } else {
+    copyOpaque(top, -static_cast<long>(stride), width_, height_, img);
   }
+  m.lap(&FrameTimings::antiAliasing);
+  m.timings = nullptr;
 }
+
+std::optional<AntiAliasing> parseAntiAliasing(const std::string& s) {
+  if (s == "none") return AntiAliasing::None;
+  if (s == "fxaa") return AntiAliasing::Fxaa;
+  return std::nullopt;
+}
+
+const char* antiAliasingName(AntiAliasing a) { return a == AntiAliasing::Fxaa ? "fxaa" : "none"; }
 
 std::vector<Viewport> gridLayout(int width, int height, int panels) {
   const int cols = panels <= 1 ? 1 : 2, rows = panels <= 2 ? 1 : 2;

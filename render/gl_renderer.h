@@ -1,6 +1,7 @@
 // The GL backend: owns an OSMesa context (llvmpipe, core profile, no display, no GPU) and draws
-// draw lists into an off-screen multisampled framebuffer: instanced meshes, per-pixel lighting,
-// a shadow map from the one directional light, a gridded ground, overlays and text.
+// draw lists off-screen: instanced meshes, per-pixel lighting, a shadow map from the one
+// directional light, a gridded ground, the sky, overlays and text, anti-aliased by a post-process
+// edge blend (render/fxaa.h) or by multisampling.
 #pragma once
 
 #include "render/draw_list.h"
@@ -8,15 +9,27 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace substep::render {
 
+// Anti-aliasing by a post-process filter on the finished frame (on top of any multisampling).
+enum class AntiAliasing {
+  None,  // multisampling only (RendererOptions::samples), or none
+  Fxaa,  // FXAA 3.11's edge search and blend on the read-back frame, on the CPU (render/fxaa.h)
+};
+std::optional<AntiAliasing> parseAntiAliasing(const std::string& s);  // "none", "fxaa"
+const char* antiAliasingName(AntiAliasing a);
+
+// The default, FXAA without multisampling, draws the 210-box pyramid at 1280x720 in 8 to 11 ms
+// (median) on two llvmpipe threads, 4x multisampling in about 14 ms (docs/rendering.md, "Measured").
 struct RendererOptions {
-  int samples = 4;           // multisampling; clamped to what the context offers; 1 turns it off
-  int shadowSize = 1024;     // shadow map side [texels]; 0 turns shadows off (2048 costs 2.5 ms more at 720p)
+  AntiAliasing antiAliasing = AntiAliasing::Fxaa;
+  int samples = 1;           // multisampling; 1 turns it off; llvmpipe makes any other count 4 (its only one)
+  int shadowSize = 1024;     // shadow map side [texels]; 0 turns shadows off
   std::string fontPath;      // empty: defaultFontPath()
 };
 
@@ -28,6 +41,19 @@ struct Viewport {
 struct View {
   const DrawList* list = nullptr;
   Viewport viewport;
+};
+
+// Where a frame's time went [s], when render() is asked for it: each stage ends with glFinish,
+// so the stages no longer overlap and their sum differs a little from an untimed frame.
+struct FrameTimings {
+  double shadow = 0;        // shadow map pass(es)
+  double scene = 0;         // solids, sky, overlays
+  double resolve = 0;       // multisample resolve (a blit) and, without FXAA, the sky under it
+  double text = 0;          // HUD, labels, legend
+  double readback = 0;      // glReadPixels
+  double antiAliasing = 0;  // the post-process filter with the row flip (the flip alone without it), on the CPU
+  long long blendedPixels = 0;  // pixels the post-process filter changed
+  double total() const { return shadow + scene + resolve + text + readback + antiAliasing; }
 };
 
 class RenderError : public std::runtime_error {
@@ -46,14 +72,15 @@ class GlRenderer {
 
   int width() const { return width_; }
   int height() const { return height_; }
-  std::string glInfo() const;  // renderer and version strings
+  std::string glInfo() const;  // renderer and version strings, and the anti-aliasing
 
   // Draws every view into its viewport (a grid of comparison panels, or one view filling the
   // frame), then its text; returns the frame, row 0 at the top.
   Image render(const std::vector<View>& views);
   Image render(const DrawList& list);
   // The same into `out`, reusing its pixels when the size matches (no page faults per frame).
-  void render(const std::vector<View>& views, Image& out);
+  // With `timings`, every stage is finished and timed (for benchmarks; slower).
+  void render(const std::vector<View>& views, Image& out, FrameTimings* timings = nullptr);
 
  private:
   struct Impl;

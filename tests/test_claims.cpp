@@ -288,7 +288,7 @@ TEST(Claims, SummedRotationIsFirstOrder) {
 // The acceptance scene: a pile of twenty ragdolls under A5 with Havok's defaults (n 4, m 1,
 // τ 0.6, κ 1) for 10 s. Asserted: every value stays finite and every body stays within the room
 // around the steps. The third condition, no joint separating more than 2 cm, does not
-// hold (measured 2026-11-23: up to 18.0 cm, trapped 1 kg forearms and feet; docs/algorithms.md):
+// hold (measured 2026-11-23: 17 to 24 cm, trapped 1 kg forearms and feet; docs/algorithms.md):
 // it is kept as a documented expected failure, i.e. the test fails if the claim starts to hold
 // (then make it a plain assertion), and a bound at the measured figures catches a regression.
 TEST(Claims, RagdollPileStaysTogether) {
@@ -321,7 +321,8 @@ TEST(Claims, RagdollPileStaysTogether) {
               worstJoint * 100, worstJointLate * 100, within2cm, s.model.joints.size());
   // Expected failure of the claim: if this fires, the pile now keeps every joint within 2 cm.
   EXPECT_GT(worstJoint, 0.02) << "the 2 cm claim holds now: assert it and update docs/algorithms.md";
-  // Regression bounds just beyond the measured figures (18.0 cm; 253 to 256 of 260 within 2 cm).
-  EXPECT_LT(worstJoint, 0.25);
+  // Regression bounds beyond the measured figures (17 to 24 cm; 253 to 258 of 260 within 2 cm:
+  // the pile is chaotic, so any change to the collision code moves them).
+  EXPECT_LT(worstJoint, 0.30);
   EXPECT_GE(within2cm, static_cast<int>(s.model.joints.size()) - 10);
 }

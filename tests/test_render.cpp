@@ -4,6 +4,7 @@
 #include "physics/scene_file.h"
 #include "physics/world.h"
 #include "render/compare.h"
+#include "render/fxaa.h"
 #include "render/gl_renderer.h"
 #include "render/image.h"
 #include "render/meshes.h"
@@ -18,6 +19,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
+#include <functional>
 #include <set>
 
 namespace fs = std::filesystem;
@@ -412,7 +415,7 @@ TEST(CompareSpecs, TheIssueExampleAndEveryKey) {
   EXPECT_EQ(*specs[1].overrides.substeps, 4);
   EXPECT_FALSE(specs[1].overrides.iterations);
 
-  specs = parseCompareSpecs("a1, a5:n=8:m=2:kappa=1.1:tau=0.9:warm=on ,a2:omega=1.3;tol=1e-4;dt=0.01,a3:preset=4-hard");
+  specs = parseCompareSpecs("a1, a5:n=8:m=2:kappa=1.1:tau=0.9:warm=on:split=on ,a2:omega=1.3;tol=1e-4;dt=0.01,a3:preset=4-hard");
   ASSERT_EQ(specs.size(), 4u);
   EXPECT_EQ(*specs[0].overrides.algorithm, Algorithm::A1);
   const SolverOverrides& a5 = specs[1].overrides;
@@ -421,6 +424,7 @@ TEST(CompareSpecs, TheIssueExampleAndEveryKey) {
   EXPECT_DOUBLE_EQ(*a5.kappa, 1.1);
   EXPECT_DOUBLE_EQ(*a5.tau, 0.9);
   EXPECT_TRUE(*a5.warmStart);
+  EXPECT_TRUE(*a5.splitImpulse);
   EXPECT_DOUBLE_EQ(*specs[2].overrides.omega, 1.3);
   EXPECT_DOUBLE_EQ(*specs[2].overrides.tolerance, 1e-4);
   EXPECT_DOUBLE_EQ(*specs[2].overrides.dt, 0.01);
@@ -499,6 +503,117 @@ TEST(Images, ComparisonToleratesRoundingButNotChange) {
   EXPECT_EQ(r.diff.pixel(50, 50)[1], 0);
   EXPECT_LT(r.diff.pixel(20, 20)[0], 100);
   EXPECT_FALSE(compareImages(a, Image(100, 99), o).match);
+}
+
+// ---- anti-aliasing (render/fxaa.h) ----
+
+namespace {
+
+constexpr uint8_t kDark[3] = {40, 40, 60}, kBright[3] = {230, 230, 230};
+
+// A frame as the shaders leave it: RGBA with the luma (and the smooth flag) in the alpha.
+Image lumaFrame(int w, int h, const std::function<bool(int, int)>& bright,
+                const std::function<bool(int, int)>& smooth = nullptr) {
+  Image img(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      uint8_t* p = img.pixel(x, y);
+      const uint8_t* c = bright(x, y) ? kBright : kDark;
+      p[0] = c[0], p[1] = c[1], p[2] = c[2];
+      p[3] = encodeLumaAlpha((0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]) / 255, smooth && smooth(x, y));
+    }
+  return img;
+}
+
+double brightness(const uint8_t* p) { return (p[0] - kDark[0]) / double(kBright[0] - kDark[0]); }
+
+// Bright above the line y = 20 + x / 8 (pixel centres): a near-horizontal edge in 8-pixel steps.
+bool aboveLine(int x, int y) { return y + 0.5 < 20 + (x + 0.5) / 8; }
+
+}  // namespace
+
+TEST(Fxaa, FlatFramesAreCopiedOpaque) {
+  const Image in = lumaFrame(64, 48, [](int x, int) { return x < 32; });  // one vertical edge, straight
+  Image out;
+  fxaa(in.rgba.data(), 64 * 4, 64, 48, out);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) {
+      EXPECT_EQ(out.pixel(x, y)[3], 255);
+      if (x < 30 || x > 33) {
+        for (int c = 0; c < 3; ++c) ASSERT_EQ(out.pixel(x, y)[c], in.pixel(x, y)[c]) << x << "," << y;
+      }
+    }
+  const Image flat = lumaFrame(16, 16, [](int, int) { return true; });
+  EXPECT_EQ(fxaa(flat.rgba.data(), 16 * 4, 16, 16, out).edgePixels, 0);
+}
+
+// The aliased staircase becomes a ramp: along the edge, each column's share of bright comes
+// close to the area above the line, where the aliased frame is off by up to half a pixel.
+TEST(Fxaa, StairStepsBecomeARamp) {
+  const int w = 96, h = 40;
+  const Image in = lumaFrame(w, h, aboveLine);
+  Image out;
+  const FxaaStats st = fxaa(in.rgba.data(), w * 4, w, h, out);
+  EXPECT_GT(st.edgePixels, w / 2);
+  double errIn = 0, errOut = 0;
+  int mixed = 0;
+  for (int x = 16; x < w - 16; ++x) {
+    const double exact = 20 + (x + 0.5) / 8;  // rows of bright in column x
+    double sumIn = 0, sumOut = 0;
+    for (int y = 0; y < h; ++y) {
+      sumIn += brightness(in.pixel(x, y));
+      sumOut += brightness(out.pixel(x, y));
+      const double b = brightness(out.pixel(x, y));
+      mixed += b > 0.05 && b < 0.95;
+      if (std::abs(y - exact) > 3) {
+        for (int c = 0; c < 3; ++c) ASSERT_EQ(out.pixel(x, y)[c], in.pixel(x, y)[c]) << x << "," << y;  // far from the edge
+      }
+    }
+    errIn += std::abs(sumIn - exact);
+    errOut += std::abs(sumOut - exact);
+  }
+  std::cout << "mean error of a column's bright share: aliased " << errIn / (w - 32) << " px, filtered "
+            << errOut / (w - 32) << " px; " << mixed << " pixels in between\n";
+  EXPECT_GT(mixed, (w - 32) / 2);
+  EXPECT_LT(errOut, 0.5 * errIn) << "mean error per column: aliased " << errIn / (w - 32) << ", filtered "
+                                 << errOut / (w - 32);
+}
+
+TEST(Fxaa, LeavesTextAndSmoothSurfacesAlone) {
+  const int w = 96, h = 40;
+  Image out;
+  // Text: the left half is kept as drawn.
+  const Image in = lumaFrame(w, h, aboveLine);
+  fxaa(in.rgba.data(), w * 4, w, h, out, {PixelRect{0, 0, w / 2, h}});
+  int changedRight = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const bool same = std::equal(in.pixel(x, y), in.pixel(x, y) + 3, out.pixel(x, y));
+      if (x < w / 2) {
+        ASSERT_TRUE(same) << x << "," << y;
+      }
+      changedRight += !same;
+    }
+  EXPECT_GT(changedRight, 0);
+  // Smooth surfaces (a gridded ground) on both sides of a contrast: left alone.
+  const Image smooth = lumaFrame(w, h, aboveLine, [](int, int) { return true; });
+  EXPECT_EQ(fxaa(smooth.rgba.data(), w * 4, w, h, out).edgePixels, 0);
+  // A body's silhouette against the ground: blended.
+  const Image silhouette = lumaFrame(w, h, aboveLine, [](int x, int y) { return !aboveLine(x, y); });
+  EXPECT_GT(fxaa(silhouette.rgba.data(), w * 4, w, h, out).edgePixels, w / 2);
+}
+
+TEST(Fxaa, ANegativeStrideReadsRowsBottomUp) {
+  const Image in = lumaFrame(8, 6, [](int, int y) { return y < 3; });  // bright top half
+  Image out;
+  // Rows read from the last up: the bright half lands at the bottom.
+  copyOpaque(in.rgba.data() + 5 * 8 * 4, -8 * 4, 8, 6, out);
+  EXPECT_EQ(out.pixel(0, 0)[0], kDark[0]);
+  EXPECT_EQ(out.pixel(0, 5)[0], kBright[0]);
+  EXPECT_EQ(out.pixel(0, 5)[3], 255);
+  fxaa(in.rgba.data() + 5 * 8 * 4, -8 * 4, 8, 6, out);
+  EXPECT_EQ(out.pixel(0, 0)[0], kDark[0]);
+  EXPECT_EQ(out.pixel(0, 5)[0], kBright[0]);
 }
 
 // ---- text ----

@@ -70,7 +70,7 @@ TEST(RenderCli, HelpListsTheOptions) {
   const Outcome r = run("render --help");
   EXPECT_EQ(r.status, 0);
   for (const char* o : {"--compare", "--fps", "--size", "--at", "--seconds", "--camera", "--color", "--contacts", "--joints",
-                        "--algo", "a2:m=4,a5:n=4"})
+                        "--algo", "a2:m=4,a5:n=4", "--aa", "--samples", "--shadow-size"})
     EXPECT_NE(r.output.find(o), std::string::npos) << o;
 }
 
@@ -99,6 +99,8 @@ TEST(RenderCli, BadArgumentsExitWithStatus2AndWriteNothing) {
       {"assets/scenes/stack.json --follow ghost -o " + png, "no body \"ghost\""},
       {"assets/scenes/stack.json --highlight ghost -o " + png, "no body \"ghost\""},
       {"assets/scenes/stack.json --color rainbow -o " + png, "--color"},
+      {"assets/scenes/stack.json --aa smaa -o " + png, "--aa"},
+      {"assets/scenes/stack.json --samples 3 -o " + png, "--samples"},
       {"assets/scenes/no_such.json -o " + png, "cannot open"},
       {"tests/data/bad/negative_mass.json -o " + png, "bodies[0].mass"},
   };
@@ -131,6 +133,21 @@ TEST(RenderCli, WritesOnePngAtATime) {
     colours.insert(img.rgba[i] << 16 | img.rgba[i + 1] << 8 | img.rgba[i + 2]);
   EXPECT_GT(colours.size(), 500u);
   EXPECT_EQ(listing(d), std::vector<std::string>{"s.png"});
+  EXPECT_NE(r.output.find("FXAA"), std::string::npos) << r.output;  // the default anti-aliasing, named
+}
+
+// Anti-aliasing: FXAA by default, multisampling with --samples (alone, unless --aa fxaa), none.
+TEST(RenderCli, AntiAliasingIsSelectable) {
+  const fs::path d = scratch();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"", "FXAA"}, {"--samples 4", "4x MSAA\n"}, {"--samples 4 --aa fxaa", "4x MSAA + FXAA"}, {"--aa none", "no anti-aliasing"}};
+  for (const auto& [args, info] : cases) {
+    const fs::path f = d / "a.png";
+    const Outcome r = run("render assets/scenes/stack.json --at 0.5 --size 160x90 " + args + " -o " + f.string());
+    ASSERT_EQ(r.status, 0) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(info), std::string::npos) << args << "\n" << r.output;
+    EXPECT_EQ(substep::render::readPng(f.string()).width, 160);
+  }
 }
 
 TEST(RenderCli, WritesAnH264VideoAtTheVideoRate) {

@@ -268,3 +268,52 @@ TEST(SnapshotTolerance, MissingFontIsARenderErrorNamingIt) {
     EXPECT_NE(std::string(e.what()).find("/no/such/font.ttf"), std::string::npos) << e.what();
   }
 }
+
+// Anti-aliasing: the default is FXAA on the CPU after the read-back; it changes a small share of
+// the pixels, all of them on an edge of the frame drawn without anti-aliasing, and leaves every
+// pixel opaque. 4x multisampling stays available.
+TEST(AntiAliasing, FxaaBlendsEdgesOnlyAndMultisamplingStaysAvailable) {
+  const Snapshot& s = kSnapshots[0];
+  ASSERT_EQ(s.name, "stack");
+  const Stage st = stage(s);
+  const std::vector<DrawList> lists = drawLists(st);
+  auto frame = [&](int samples, AntiAliasing aa, const std::string& info) {
+    RendererOptions o;
+    o.samples = samples;
+    o.antiAliasing = aa;
+    GlRenderer r(s.width, s.height, o);
+    EXPECT_NE(r.glInfo().find(info), std::string::npos) << r.glInfo();
+    return r.render(lists[0]);
+  };
+  EXPECT_EQ(RendererOptions{}.antiAliasing, AntiAliasing::Fxaa);
+  EXPECT_EQ(RendererOptions{}.samples, 1);
+  const Image none = frame(1, AntiAliasing::None, "no anti-aliasing"), fx = frame(1, AntiAliasing::Fxaa, "FXAA"),
+              ms = frame(4, AntiAliasing::None, "4x MSAA");
+  writePng((failureDir() / "aa_none.png").string(), none);
+  writePng((failureDir() / "aa_fxaa.png").string(), fx);
+  writePng((failureDir() / "aa_msaa4.png").string(), ms);
+  for (const Image* img : {&none, &fx, &ms})
+    for (size_t i = 3; i < img->rgba.size(); i += 4) ASSERT_EQ(img->rgba[i], 255);  // the luma in the alpha is gone
+
+  const CompareResult c = compareImages(none, fx, CompareOptions{2, 1.0});
+  std::cout << "FXAA against none: " << c.summary() << "\n";
+  EXPECT_GT(c.share, 0.002);
+  EXPECT_LT(c.share, 0.05);
+  // Every changed pixel has a neighbour (or is one) across which the unfiltered frame jumps.
+  auto luma = [](const Image& img, int x, int y) {
+    const uint8_t* p = img.pixel(std::clamp(x, 0, img.width - 1), std::clamp(y, 0, img.height - 1));
+    return 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+  };
+  int offEdge = 0;
+  for (int y = 0; y < s.height; ++y)
+    for (int x = 0; x < s.width; ++x) {
+      const uint8_t *a = none.pixel(x, y), *b = fx.pixel(x, y);
+      if (std::max({std::abs(a[0] - b[0]), std::abs(a[1] - b[1]), std::abs(a[2] - b[2])}) <= 2) continue;
+      double jump = 0;
+      for (auto [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+        jump = std::max(jump, std::abs(luma(none, x + dx, y + dy) - luma(none, x, y)));
+      offEdge += jump < 8;
+    }
+  EXPECT_EQ(offEdge, 0);
+  EXPECT_GT(compareImages(none, ms, CompareOptions{2, 1.0}).differing, 0);  // multisampling did something
+}

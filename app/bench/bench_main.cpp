@@ -11,7 +11,12 @@
 // split with it; with an even count the two middle runs averaged). Repeats are interleaved
 // (repeat 1 of every case, then repeat 2, ...) so slow drift of the machine spreads over all
 // cases. Single-threaded.
+//
+// What the speed buys is measured the same way for both engines, with our own definitions:
+// displacement from the start (after 1 s and at the end), the fastest body, the joints' anchor
+// separation and how far joint angles are beyond their limits (physics/constraints/joints.h).
 #include "app/bench/bullet_peer.h"
+#include "physics/constraints/joints.h"
 #include "physics/scene_file.h"
 #include "physics/settings.h"
 #include "physics/world.h"
@@ -48,7 +53,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-constexpr int kExitFailure = 1, kExitBadInput = 2, kExitNonFinite = 3;
+constexpr int kExitFailure = 1, kExitBadInput = 2, kExitNonFinite = 3, kExitNotRepeatable = 4;
 
 struct BadInput : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -69,20 +74,21 @@ struct Case {
 };
 
 // Every case the benchmark knows, in table order. Adding one, or running one by default, is an
-// edit of one line here. A case whose algorithm is not implemented yet stops the benchmark with
-// a clear message before anything is timed, so keep those off by default until they land.
+// edit of one line here. Equal solver work: a2-m4 makes 4 Gauss-Seidel sweeps per step, as
+// a3/a4/a5 at n = 4 sub-steps of m = 1 sweep do.
 const std::vector<Case>& allCases() {
   static const std::vector<Case> list = {
       //  id        label             engine           algorithm      n  m   default
       {"a2",     "a2 (m=10)",      Engine::Substep, Algorithm::A2, 1, 10, true},
-      {"a2-m4",  "a2 (m=4)",       Engine::Substep, Algorithm::A2, 1, 4,  false},  // solver work of a5 n=4 m=1
-      {"a3",     "a3 (n=4 m=1)",   Engine::Substep, Algorithm::A3, 4, 1,  false},
-      {"a4",     "a4 (n=4 m=1)",   Engine::Substep, Algorithm::A4, 4, 1,  false},
-      {"a5",     "a5 (n=4 m=1)",   Engine::Substep, Algorithm::A5, 4, 1,  false},
+      {"a2-m4",  "a2 (m=4)",       Engine::Substep, Algorithm::A2, 1, 4,  true},  // solver work of a3-a5 n=4 m=1
+      {"a3",     "a3 (n=4 m=1)",   Engine::Substep, Algorithm::A3, 4, 1,  true},
+      {"a4",     "a4 (n=4 m=1)",   Engine::Substep, Algorithm::A4, 4, 1,  true},
+      {"a5",     "a5 (n=4 m=1)",   Engine::Substep, Algorithm::A5, 4, 1,  true},
       {"bullet", "bullet (10 it)", Engine::Bullet,  Algorithm::A2, 1, 10, true},
   };
   return list;
 }
+
 
 // The solver settings of a substep case: the case's algorithm, n and m with the algorithm's other
 // defaults (resolve()); only the time step comes from the scene, so the scene's own solver block
@@ -109,25 +115,62 @@ struct Run {
   double moved = 0;         // largest displacement of a dynamic body from its start [m]
   int movedBody = -1;       // which body
   Vec3 movedBy = Vec3::Zero();  // its displacement [m]
+  double moved1s = NAN;     // largest displacement after 1 s of simulated time (NaN: shorter run) [m]
+  double maxSpeed = 0;      // fastest dynamic body's linear speed at the end [m/s]
+  double jointError = 0;    // largest anchor separation of any joint at the end [m]
+  double limitExcess = 0;   // largest angle beyond a joint limit (hinge, swing, twist) at the end [rad]
+  double hingeExcess = 0, swingExcess = 0, twistExcess = 0;  // the same per kind of limit [rad]
   int solverIterations = 0, rows = 0;  // substep only: the last step's solver statistics
 };
 
-// Sets r.moved, r.movedBody and r.movedBy from the bodies' current centres.
-template <class Position>
-void measureDisplacement(Run& r, const Scene& scene, Position position) {
+// How far the dynamic bodies are from their start: the largest displacement, its body and vector.
+template <class PoseOf>
+double largestDisplacement(const Scene& scene, PoseOf poseOf, int* body = nullptr, Vec3* by = nullptr) {
+  double moved = 0;
   for (size_t i = 0; i < scene.model.bodies.size(); ++i) {
     if (scene.model.bodies[i].isStatic) continue;
-    const Vec3 d = position(i) - scene.initial.bodies[i].x;
-    if (r.movedBody < 0 || d.norm() > r.moved) {
-      r.moved = d.norm();
-      r.movedBody = static_cast<int>(i);
-      r.movedBy = d;
+    const Vec3 d = poseOf(i).p - scene.initial.bodies[i].x;
+    if ((body && *body < 0) || d.norm() > moved) {
+      moved = d.norm();
+      if (body) *body = static_cast<int>(i);
+      if (by) *by = d;
     }
   }
+  return moved;
 }
+
+// What the run's end state looks like, by our definitions for both engines: displacement, the
+// fastest body, joint anchor separation and limit excess (physics/constraints/joints.h).
+template <class PoseOf, class VelocityOf>
+void measureEnd(Run& r, const Scene& scene, PoseOf poseOf, VelocityOf velocityOf) {
+  r.moved = largestDisplacement(scene, poseOf, &r.movedBody, &r.movedBy);
+  const Model& model = scene.model;
+  for (size_t i = 0; i < model.bodies.size(); ++i)
+    if (!model.bodies[i].isStatic) r.maxSpeed = std::max(r.maxSpeed, velocityOf(i).norm());
+  for (const Joint& j : model.joints) {
+    const Pose A = poseOf(static_cast<size_t>(j.bodyA)), B = poseOf(static_cast<size_t>(j.bodyB));
+    r.jointError = std::max(r.jointError, jointError(j, A, B));
+    if (j.type == JointType::Hinge && j.hasLimits) {
+      const double t = hingeAngle(j, A, B);
+      r.hingeExcess = std::max({r.hingeExcess, j.lower - t, t - j.upper});
+    } else if (j.type == JointType::ConeTwist) {
+      r.swingExcess = std::max(r.swingExcess, swingAngle(j, A, B) - j.swing);
+      if (j.hasLimits) {
+        const double t = twistAngle(j, A, B);
+        r.twistExcess = std::max({r.twistExcess, j.lower - t, t - j.upper});
+      }
+    }
+  }
+  r.limitExcess = std::max({r.hingeExcess, r.swingExcess, r.twistExcess});
+}
+
+// The step after which 1 s of simulated time has passed (0: never, for dt > 1 s).
+int stepOfOneSecond(double dt) { return static_cast<int>(std::lround(1.0 / dt)); }
 
 Run runSubstep(const Scene& scene, const SolverSettings& settings, int steps, std::vector<double>& stepTimes) {
   World world(scene.model, settings, scene.initial);  // outside the timed loop
+  auto poseOf = [&](size_t i) { return world.state().bodies[i].pose(); };
+  const int oneSecond = stepOfOneSecond(settings.dt);
   Run r;
   for (int k = 0; k < steps; ++k) {
     const auto t0 = Clock::now();
@@ -139,6 +182,7 @@ Run runSubstep(const Scene& scene, const SolverSettings& settings, int steps, st
       r.problem = rep.problem;
       break;
     }
+    if (r.stepsDone == oneSecond) r.moved1s = largestDisplacement(scene, poseOf);  // between timed steps
   }
   const double n = std::max(1, r.stepsDone);
   const StageTimes& t = world.totalTimes();
@@ -151,18 +195,21 @@ Run runSubstep(const Scene& scene, const SolverSettings& settings, int steps, st
   r.contacts = world.lastReport().contactPoints;
   r.solverIterations = world.lastReport().solver.iterations;
   r.rows = world.lastReport().solver.rows;
-  measureDisplacement(r, scene, [&](size_t i) { return world.state().bodies[i].x; });
+  measureEnd(r, scene, poseOf, [&](size_t i) { return world.state().bodies[i].v; });
   return r;
 }
 
 Run runBullet(const Scene& scene, double dt, int iterations, int steps, std::vector<double>& stepTimes) {
   BulletPeer peer(scene.model, scene.initial, dt, iterations);  // outside the timed loop
+  auto poseOf = [&](size_t i) { return peer.pose(i); };
+  const int oneSecond = stepOfOneSecond(dt);
   Run r;
   for (int k = 0; k < steps; ++k) {
     const auto t0 = Clock::now();
     peer.step();
     stepTimes[static_cast<size_t>(k)] = since(t0);
     r.stepsDone = k + 1;
+    if (r.stepsDone == oneSecond) r.moved1s = largestDisplacement(scene, poseOf);  // between timed steps
   }
   r.finite = peer.finite();
   if (!r.finite) r.problem = "a Bullet body's position is not finite";
@@ -173,7 +220,7 @@ Run runBullet(const Scene& scene, double dt, int iterations, int steps, std::vec
   }
   r.total /= n;
   r.contacts = peer.contactPoints();
-  measureDisplacement(r, scene, [&](size_t i) { return peer.position(i); });
+  measureEnd(r, scene, poseOf, [&](size_t i) { return peer.velocity(i); });
   return r;
 }
 
@@ -186,7 +233,8 @@ struct Result {
   SolverSettings settings;   // substep cases
   std::vector<Run> runs;     // one per repeat
   Run median;
-  bool repeatable = true;    // contacts and displacement the same in every repeat
+  const Model* model = nullptr;
+  bool repeatable = true;    // contacts, displacement, speed and joint errors the same in every repeat
   double ratio = NAN;        // median total / Bullet's median total on the same scene
 };
 
@@ -234,30 +282,167 @@ std::string fmt(const char* f, double v) {
   return buf;
 }
 
-void printTable(const std::vector<Result>& results, std::ostream& out) {
-  char line[256];
-  std::snprintf(line, sizeof line, "%-8s %-15s %7s %7s %7s %7s %9s %9s %9s %9s\n", "scene", "algo", "s1", "s2", "s3",
-                "s4", "total", "vs Bullet", "contacts", "moved");
+// Totals of the runs, in repeat order [s].
+std::vector<double> totals(const Result& r) {
+  std::vector<double> t;
+  for (const Run& run : r.runs) t.push_back(run.total);
+  return t;
+}
+
+// (slowest - fastest) / median of a case's repeats: how noisy its figure is.
+double spread(const Result& r) {
+  const std::vector<double> t = totals(r);
+  if (t.size() < 2 || !(r.median.total > 0)) return 0;
+  const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
+  return (*hi - *lo) / r.median.total;
+}
+
+// One case against another on the same scene: the ratio of the median totals, and the range of
+// the ratios of the repeats taken pairwise (repeat k of both ran close together in time, so the
+// range shows how much the machine's noise moves the ratio).
+struct Ratio {
+  double median = NAN, lo = NAN, hi = NAN;
+  bool valid() const { return !std::isnan(median); }
+};
+
+Ratio ratio(const Result* a, const Result* b) {
+  Ratio q;
+  if (!a || !b || !(b->median.total > 0)) return q;
+  q.median = a->median.total / b->median.total;
+  for (size_t k = 0; k < a->runs.size() && k < b->runs.size(); ++k) {
+    const double x = a->runs[k].total / b->runs[k].total;
+    q.lo = std::isnan(q.lo) ? x : std::min(q.lo, x);
+    q.hi = std::isnan(q.hi) ? x : std::max(q.hi, x);
+  }
+  return q;
+}
+
+std::string ratioText(const Ratio& q) {
+  if (!q.valid()) return "-";
+  return fmt("%.2fx", q.median) + " (" + fmt("%.2f", q.lo) + "-" + fmt("%.2f", q.hi) + ")";
+}
+
+const Result* find(const std::vector<Result>& results, const std::string& scene, const char* caseId) {
+  for (const Result& r : results)
+    if (r.scene == scene && std::string(r.c->id) == caseId) return &r;
+  return nullptr;
+}
+
+// The comparisons the issue asks for, per scene: A5 against A3 (what A5's refactoring saves), A5
+// against A2 at equal solver work (4 sweeps per step), A5 against Bullet; and the goal (A5 at
+// n = 4, m = 1 on the pyramid at most half of Bullet's step).
+struct Comparison {
+  std::string scene;
+  const Result *a5 = nullptr, *a3 = nullptr, *a4 = nullptr, *a2m4 = nullptr, *bullet = nullptr;
+  Ratio a5a3, a5a4, a5a2m4, a5bullet;
+  double s3a5a3 = NAN;  // ratio of the velocity stage alone (s3), where the algorithms differ
+};
+constexpr double kGoalVsBullet = 0.5;
+constexpr double kDegreesPerRadian = 180 / 3.14159265358979323846;
+constexpr const char* kGoalScene = "pyramid";
+
+std::vector<Comparison> compare(const std::vector<Result>& results) {
+  std::vector<Comparison> list;
+  for (const Result& r : results) {
+    if (std::any_of(list.begin(), list.end(), [&](const Comparison& c) { return c.scene == r.scene; })) continue;
+    Comparison c;
+    c.scene = r.scene;
+    c.a5 = find(results, r.scene, "a5");
+    c.a3 = find(results, r.scene, "a3");
+    c.a4 = find(results, r.scene, "a4");
+    c.a2m4 = find(results, r.scene, "a2-m4");
+    c.bullet = find(results, r.scene, "bullet");
+    if (!c.a5) continue;
+    c.a5a3 = ratio(c.a5, c.a3);
+    c.a5a4 = ratio(c.a5, c.a4);
+    c.a5a2m4 = ratio(c.a5, c.a2m4);
+    c.a5bullet = ratio(c.a5, c.bullet);
+    if (c.a3 && c.a3->median.stages.s3 > 0) c.s3a5a3 = c.a5->median.stages.s3 / c.a3->median.stages.s3;
+    list.push_back(c);
+  }
+  return list;
+}
+
+void printTables(const std::vector<Result>& results, int steps, std::ostream& out) {
+  char line[512];
+  out << "Time per step (median run of the repeats; spread = (slowest - fastest) / median of the repeats):\n";
+  std::snprintf(line, sizeof line, "%-12s %-15s %7s %7s %7s %7s %9s %7s %9s\n", "scene", "algo", "s1", "s2", "s3",
+                "s4", "total", "spread", "vs Bullet");
   out << line;
-  std::snprintf(line, sizeof line, "%-8s %-15s %7s %7s %7s %7s %9s %9s %9s %9s\n", "", "", "ms", "ms", "ms", "ms",
-                "ms/step", "", "", "m");
+  std::snprintf(line, sizeof line, "%-12s %-15s %7s %7s %7s %7s %9s %7s %9s\n", "", "", "ms", "ms", "ms", "ms",
+                "ms/step", "%", "");
   out << line;
   for (const Result& r : results) {
     const Run& m = r.median;
     const bool ours = r.c->engine == Engine::Substep;
     auto stage = [&](double s) { return ours ? fmt("%7.3f", s * 1e3) : std::string("      -"); };
-    const std::string ratio = std::isnan(r.ratio) ? "-" : fmt("%.2fx", r.ratio);
+    const std::string vs = std::isnan(r.ratio) ? "-" : fmt("%.2fx", r.ratio);
+    std::snprintf(line, sizeof line, "%-12s %-15s %s %s %s %s %9.3f %7.1f %9s\n", r.scene.c_str(), r.c->label,
+                  stage(m.stages.s1).c_str(), stage(m.stages.s2).c_str(), stage(m.stages.s3).c_str(),
+                  stage(m.stages.s4).c_str(), m.total * 1e3, 100 * spread(r), vs.c_str());
+    out << line;
+  }
+
+  out << "\nWhat it bought, at the end of the run (" << steps << " steps) unless said:\n";
+  std::snprintf(line, sizeof line, "%-12s %-15s %8s %9s %9s %8s %8s %8s  %s\n", "scene", "algo", "contacts",
+                "moved 1s", "moved", "max v", "joint", "limit", "moved most");
+  out << line;
+  std::snprintf(line, sizeof line, "%-12s %-15s %8s %9s %9s %8s %8s %8s\n", "", "", "", "m", "m", "m/s", "err mm",
+                "over deg");
+  out << line;
+  for (const Result& r : results) {
+    const Run& m = r.median;
+    const Model* model = r.model;
     std::string moved = fmt("%.4f", m.moved);
     if (!m.finite) moved = "NaN@" + std::to_string(m.stepsDone);
-    std::snprintf(line, sizeof line, "%-8s %-15s %s %s %s %s %9.3f %9s %9d %9s%s\n", r.scene.c_str(), r.c->label,
-                  stage(m.stages.s1).c_str(), stage(m.stages.s2).c_str(), stage(m.stages.s3).c_str(),
-                  stage(m.stages.s4).c_str(), m.total * 1e3, ratio.c_str(), m.contacts, moved.c_str(),
+    const std::string moved1s = std::isnan(m.moved1s) ? "-" : fmt("%.4f", m.moved1s);
+    const bool joints = !model->joints.empty();
+    const std::string err = joints ? fmt("%.2f", m.jointError * 1e3) : "-";
+    const std::string over = joints ? fmt("%.1f", m.limitExcess * kDegreesPerRadian) : "-";
+    const std::string who = m.movedBody >= 0 ? model->bodies[static_cast<size_t>(m.movedBody)].name : "-";
+    std::snprintf(line, sizeof line, "%-12s %-15s %8d %9s %9s %8.3f %8s %8s  %s%s\n", r.scene.c_str(), r.c->label,
+                  m.contacts, moved1s.c_str(), moved.c_str(), m.maxSpeed, err.c_str(), over.c_str(), who.c_str(),
                   r.repeatable ? "" : "  (differs between repeats)");
     out << line;
   }
+
+  const std::vector<Comparison> comps = compare(results);
+  if (comps.empty()) return;
+  out << "\nA5 (n=4 m=1) against A3 and A4 (same n, m), A2 at equal solver work (m=4) and Bullet: ratio of the\n"
+         "median totals (in brackets the range of the repeats' pairwise ratios); saving = 1 - a5/a3:\n";
+  std::snprintf(line, sizeof line, "%-12s %9s %20s %7s %8s %20s %20s %20s\n", "scene", "a5 ms", "a5/a3", "saving",
+                "s3 a5/a3", "a5/a4", "a5/a2-m4", "a5/bullet");
+  out << line;
+  for (const Comparison& c : comps) {
+    const std::string saving = c.a5a3.valid() ? fmt("%.0f%%", 100 * (1 - c.a5a3.median)) : "-";
+    const std::string s3 = std::isnan(c.s3a5a3) ? "-" : fmt("%.2fx", c.s3a5a3);
+    std::snprintf(line, sizeof line, "%-12s %9.3f %20s %7s %8s %20s %20s %20s\n", c.scene.c_str(),
+                  c.a5->median.total * 1e3, ratioText(c.a5a3).c_str(), saving.c_str(), s3.c_str(),
+                  ratioText(c.a5a4).c_str(), ratioText(c.a5a2m4).c_str(), ratioText(c.a5bullet).c_str());
+    out << line;
+  }
+  for (const Comparison& c : comps) {
+    if (c.scene != kGoalScene || !c.a5bullet.valid()) continue;
+    const bool met = c.a5bullet.median <= kGoalVsBullet;
+    const double needed = kGoalVsBullet * c.bullet->median.total;
+    out << "\nGoal: A5 (n=4, m=1) on the " << kGoalScene << " at most " << fmt("%.2fx", kGoalVsBullet)
+        << " Bullet's step time: " << (met ? "MET" : "NOT MET") << " (" << ratioText(c.a5bullet) << ", "
+        << fmt("%.3f", c.a5->median.total * 1e3) << " ms against Bullet's " << fmt("%.3f", c.bullet->median.total * 1e3)
+        << " ms";
+    if (!met)
+      out << "; the goal needs <= " << fmt("%.3f", needed * 1e3) << " ms, "
+          << fmt("%.1fx", c.a5->median.total / needed) << " faster than now";
+    out << ")\n";
+  }
+}
+
+nlohmann::json ratioJson(const Ratio& q) {
+  if (!q.valid()) return nullptr;
+  return {{"median", q.median}, {"repeats_min", q.lo}, {"repeats_max", q.hi}};
 }
 
 nlohmann::json runJson(const Run& r, const Model& model) {
+  auto number = [](double x) { return std::isnan(x) ? nlohmann::json(nullptr) : nlohmann::json(x); };
   nlohmann::json j = {{"ms_per_step", {{"s1", r.stages.s1 * 1e3}, {"s2", r.stages.s2 * 1e3}, {"s3", r.stages.s3 * 1e3},
                            {"s4", r.stages.s4 * 1e3}, {"total", r.total * 1e3}}},
           {"worst_step_ms", r.worst * 1e3},
@@ -265,7 +450,12 @@ nlohmann::json runJson(const Run& r, const Model& model) {
           {"finite", r.finite},
           {"problem", r.problem},
           {"contact_points", r.contacts},
-          {"moved_m", r.moved}};
+          {"moved_1s_m", number(r.moved1s)},
+          {"moved_m", r.moved},
+          {"max_speed_mps", r.maxSpeed},
+          {"joint_error_m", r.jointError},
+          {"limit_excess_rad", {{"any", r.limitExcess}, {"hinge", r.hingeExcess}, {"swing", r.swingExcess},
+                                {"twist", r.twistExcess}}}};
   if (r.movedBody >= 0) {
     j["moved_body"] = model.bodies[static_cast<size_t>(r.movedBody)].name;
     j["moved_by_m"] = {r.movedBy.x(), r.movedBy.y(), r.movedBy.z()};
@@ -310,13 +500,43 @@ void writeJson(const std::string& path, const nlohmann::json& doc) {
 
 // --- main -------------------------------------------------------------------------------------
 
+// /proc/loadavg's 1, 5 and 15 minute load averages, e.g. "1.95 1.78 1.93" ("unknown" elsewhere).
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  if (!(in >> a >> b >> c)) return "unknown";
+  return a + " " + b + " " + c;
+}
+
+// The source tree the benchmark was built from, as git sees it now: the commit, and how many
+// files under physics/ differ from it (the timings depend on them). "unknown" without git.
+std::string sourceState() {
+  const std::string git = std::string("git -C '") + SUBSTEP_SOURCE_DIR + "' ";
+  auto run = [](const std::string& cmd) {
+    std::string out;
+    if (FILE* p = popen((cmd + " 2>/dev/null").c_str(), "r")) {
+      char buf[256];
+      while (std::fgets(buf, sizeof buf, p)) out += buf;
+      if (pclose(p) != 0) return std::string();
+    }
+    return out;
+  };
+  std::string commit = run(git + "rev-parse --short HEAD");
+  if (commit.empty()) return "unknown";
+  commit.erase(commit.find_last_not_of("\n") + 1);
+  const std::string changed = run(git + "status --porcelain -- physics");
+  const long files = std::count(changed.begin(), changed.end(), '\n');
+  return commit + (files ? " + uncommitted changes in " + std::to_string(files) + " file(s) under physics/" : "");
+}
+
 struct Options {
   int steps = 300;
-  int repeat = 3;
-  std::vector<std::string> scenes{"pyramid", "pile"};
+  int repeat = 5;
+  std::vector<std::string> scenes{"pyramid", "chain", "ragdoll_pile"};
   std::vector<std::string> algos;
   std::string json;
   bool quick = false;
+  std::string command;  // the command line, for the JSON
 };
 
 int bench(const Options& opt) {
@@ -341,6 +561,8 @@ int bench(const Options& opt) {
   std::vector<Scene> scenes;
   std::vector<std::string> names;
   std::vector<Result> results;
+  std::vector<std::string> skipped;  // scenes without a Bullet peer, and why
+  scenes.reserve(opt.scenes.size());  // results point at their scene's model
   for (const std::string& name : opt.scenes) {
     const std::string path = scenePath(name);
     try {
@@ -356,6 +578,7 @@ int bench(const Options& opt) {
       Result r;
       r.scene = names[s];
       r.sceneIndex = s;
+      r.model = &scenes[s].model;
       r.c = c;
       if (c->engine == Engine::Substep) {
         try {
@@ -367,7 +590,8 @@ int bench(const Options& opt) {
       } else {
         const std::string why = bulletUnsupported(scenes[s].model);
         if (!why.empty()) {
-          std::cerr << "substep-bench: no Bullet peer for " << names[s] << ": " << why << "\n";
+          std::cout << "substep-bench: no Bullet peer for " << names[s] << ", Bullet skipped there: " << why << "\n";
+          skipped.push_back(names[s] + ": " + why);
           continue;
         }
         r.settings.dt = dt;
@@ -379,12 +603,16 @@ int bench(const Options& opt) {
 
   std::cout << "substep-bench  " << utcNow() << "  " << cpuModel() << ", " << std::thread::hardware_concurrency()
             << " hardware threads, single-threaded runs; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
-            << bulletVersion() << "\n";
+            << bulletVersion() << "; load average " << loadAverage() << "\n";
+  const std::string source = sourceState();
+  std::cout << "source " << source << " (as git sees the tree now; the build may be older)\n";
   std::cout << opt.steps << " steps of dt = " << fmt("%.6g", results.empty() ? 0.0 : results[0].settings.dt)
             << " s each, every step timed (no warm-up excluded); median of " << opt.repeat
             << " repeats, each on a freshly built world\n\n";
   std::cout.flush();
 
+  const std::string loadBefore = loadAverage();
+  const auto started = Clock::now();
   std::vector<double> stepTimes(static_cast<size_t>(opt.steps));
   const int totalRuns = opt.repeat * static_cast<int>(results.size());
   int done = 0;
@@ -404,7 +632,9 @@ int bench(const Options& opt) {
   for (Result& r : results) {
     r.median = medianRun(r.runs);
     for (const Run& run : r.runs) {
-      if (run.contacts != r.runs[0].contacts || run.moved != r.runs[0].moved || run.finite != r.runs[0].finite)
+      const Run& first = r.runs[0];
+      if (run.contacts != first.contacts || run.moved != first.moved || run.finite != first.finite ||
+          run.maxSpeed != first.maxSpeed || run.jointError != first.jointError || run.stepsDone != first.stepsDone)
         r.repeatable = false;
       allFinite = allFinite && run.finite;
     }
@@ -415,12 +645,27 @@ int bench(const Options& opt) {
         r.ratio = r.median.total / b.median.total;
   }
 
+  const double wall = since(started);
+  const std::string loadAfter = loadAverage();
   std::cout << "\n";
-  printTable(results, std::cout);
+  printTables(results, opt.steps, std::cout);
   std::cout << "\ns1 geometry, s2 formulation, s3 velocities, s4 coordinates: mean per step of the median run; total:\n"
                "wall time of one step() call (includes bookkeeping outside s1-s4). vs Bullet: total / Bullet's total\n"
                "on the same scene. contacts: contact points at the last step. moved: largest distance of any body's\n"
-               "centre from where it started, after the last step (the pile is dropped, so there it is the fall).\n";
+               "centre from where it started (after 1 s, and at the end; dropped scenes: mostly the fall). max v:\n"
+               "fastest body. joint err: largest anchor separation; limit over: largest angle beyond a hinge, swing\n"
+               "or twist limit; both by our definitions, for Bullet too.\n";
+  for (const std::string& s : skipped) std::cout << "No Bullet peer for " << s << "\n";
+  std::cout << "Timed runs took " << fmt("%.1f", wall) << " s; load average before " << loadBefore << ", after "
+            << loadAfter << ".\n";
+  bool allRepeatable = true;
+  for (const Result& r : results) allRepeatable = allRepeatable && r.repeatable;
+  if (!allRepeatable) {
+    std::cout << "WARNING: some cases ended differently between repeats (contacts, displacement, speed or joint\n"
+                 "error differ), so their repeats did not time the same work:\n";
+    for (const Result& r : results)
+      if (!r.repeatable) std::cout << "  " << r.scene << " " << r.c->label << "\n";
+  }
   if (!allFinite) {
     std::cout << "WARNING: some runs diverged (NaN@k: at step k):\n";
     for (const Result& r : results)
@@ -433,7 +678,11 @@ int bench(const Options& opt) {
     doc["date_utc"] = utcNow();
     doc["machine"] = {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}};
     doc["build_type"] = SUBSTEP_BUILD_TYPE;
+    doc["source"] = source;
     doc["bullet_version"] = bulletVersion();
+    doc["load_average"] = {{"before", loadBefore}, {"after", loadAfter}};
+    doc["timed_wall_s"] = wall;
+    doc["command"] = opt.command;
     doc["steps"] = opt.steps;
     doc["repeat"] = opt.repeat;
     doc["method"] =
@@ -458,6 +707,7 @@ int bench(const Options& opt) {
         j["settings"] = {{"dt", r.settings.dt}, {"iterations", r.c->iterations}, {"sleeping", false}};
       }
       j["vs_bullet"] = std::isnan(r.ratio) ? nlohmann::json(nullptr) : nlohmann::json(r.ratio);
+      j["spread"] = spread(r);
       j["repeatable"] = r.repeatable;
       nlohmann::json reps = nlohmann::json::array();
       for (const Run& run : r.runs) reps.push_back(runJson(run, model));
@@ -465,10 +715,26 @@ int bench(const Options& opt) {
       list.push_back(j);
     }
     doc["results"] = list;
+    nlohmann::json comps = nlohmann::json::array();
+    for (const Comparison& c : compare(results)) {
+      nlohmann::json j = {{"scene", c.scene},
+                          {"a5_ms", c.a5->median.total * 1e3},
+                          {"a5_over_a3", ratioJson(c.a5a3)},
+                          {"a5_over_a4", ratioJson(c.a5a4)},
+                          {"a5_over_a2_m4", ratioJson(c.a5a2m4)},
+                          {"a5_over_bullet", ratioJson(c.a5bullet)},
+                          {"s3_a5_over_a3", std::isnan(c.s3a5a3) ? nlohmann::json(nullptr) : nlohmann::json(c.s3a5a3)}};
+      if (c.scene == kGoalScene && c.a5bullet.valid())
+        j["goal"] = {{"a5_over_bullet_at_most", kGoalVsBullet}, {"met", c.a5bullet.median <= kGoalVsBullet}};
+      comps.push_back(j);
+    }
+    doc["comparisons"] = comps;
+    doc["bullet_skipped"] = skipped;
     writeJson(opt.json, doc);
     std::cout << "wrote " << opt.json << "\n";
   }
-  return allFinite ? 0 : kExitNonFinite;
+  if (!allFinite) return kExitNonFinite;
+  return allRepeatable ? 0 : kExitNotRepeatable;
 }
 
 }  // namespace
@@ -485,8 +751,10 @@ int main(int argc, char** argv) {
   for (const Case& c : allCases()) algoHelp += std::string(" ") + c.id;
   algoHelp += ")";
   auto* stepsOpt = app.add_option("--steps", opt.steps, "Steps per run (default 300; --quick: 10)")->check(CLI::Range(1, 10000000));
-  app.add_option("--repeat", opt.repeat, "Runs of each case; the median is reported (default 3)")->check(CLI::Range(1, 1000));
-  app.add_option("--scenes", opt.scenes, "Scenes, comma-separated: names in assets/scenes or .json paths (default pyramid,pile)")
+  app.add_option("--repeat", opt.repeat, "Runs of each case; the median is reported (default 5)")->check(CLI::Range(1, 1000));
+  app.add_option("--scenes", opt.scenes,
+                 "Scenes, comma-separated: names in assets/scenes or .json paths (default pyramid,chain,ragdoll_pile; "
+                 "also e.g. pile)")
       ->delimiter(',');
   app.add_option("--algos", opt.algos, algoHelp)->delimiter(',');
   app.add_option("--json", opt.json, "Also write the results as JSON to FILE (written atomically)");
@@ -498,6 +766,7 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : kExitBadInput;
   }
   if (opt.quick && stepsOpt->count() == 0) opt.steps = 10;
+  for (int i = 0; i < argc; ++i) opt.command += (i ? " " : "") + std::string(argv[i]);
   try {
     return bench(opt);
   } catch (const BadInput& e) {

@@ -8,11 +8,88 @@
 
 namespace substep::bench {
 
+namespace {
+
+btVector3 bt(const Vec3& v) { return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z())); }
+btQuaternion bt(const Quat& q) { return btQuaternion(btScalar(q.x()), btScalar(q.y()), btScalar(q.z()), btScalar(q.w())); }
+Vec3 fromBt(const btVector3& v) { return Vec3(double(v.x()), double(v.y()), double(v.z())); }
+
+// A joint frame in a body's frame: origin at the anchor, columns x, y = ... as given (unit,
+// orthogonal), z = x × y.
+btTransform jointFrame(const Vec3& anchor, const Vec3& x, const Vec3& y) {
+  const Vec3 z = x.cross(y);
+  btTransform t;
+  t.setIdentity();
+  t.setOrigin(bt(anchor));
+  t.setBasis(btMatrix3x3(btScalar(x.x()), btScalar(y.x()), btScalar(z.x()),  //
+                         btScalar(x.y()), btScalar(y.y()), btScalar(z.y()),  //
+                         btScalar(x.z()), btScalar(y.z()), btScalar(z.z())));
+  return t;
+}
+
+// The joint's axis and reference direction in one body's frame, made exactly orthonormal.
+void axisAndRef(const Vec3& axisIn, const Vec3& refIn, Vec3& axis, Vec3& ref) {
+  axis = axisIn.normalized();
+  ref = refIn - refIn.dot(axis) * axis;
+  if (ref.norm() < 1e-9) {
+    Vec3 unused;
+    tangentBasis(axis, ref, unused);
+  }
+  ref.normalize();
+}
+
+// Both frames of a joint. `axisColumn` 0: the axis is the frames' x (cone-twist: Bullet twists
+// about x), 2: their z (hinge: Bullet turns about z). B's frame is turned by -mid about the axis,
+// so that Bullet's zero angle is our angle `mid` (the middle of our limits): Bullet's cone-twist
+// limits are symmetric about zero, and with the limits symmetric about zero in Bullet's frames
+// too, the mapping does not depend on Bullet's sign convention for the angle.
+void jointFrames(const Joint& j, int axisColumn, double mid, btTransform& frameA, btTransform& frameB) {
+  Vec3 axA, refA, axB, refB;
+  axisAndRef(j.localAxisA, j.localRefA, axA, refA);
+  axisAndRef(j.localAxisB, j.localRefB, axB, refB);
+  refB = Eigen::AngleAxisd(-mid, axB) * refB;
+  if (axisColumn == 0) {
+    frameA = jointFrame(j.localAnchorA, axA, refA);
+    frameB = jointFrame(j.localAnchorB, axB, refB);
+  } else {  // x = ref, y = axis × ref, z = axis
+    frameA = jointFrame(j.localAnchorA, refA, axA.cross(refA));
+    frameB = jointFrame(j.localAnchorB, refB, axB.cross(refB));
+  }
+}
+
+std::unique_ptr<btCollisionShape> makeShape(const Shape& s) {
+  switch (s.type) {
+    case ShapeType::Sphere:
+      return std::make_unique<btSphereShape>(btScalar(s.radius));
+    case ShapeType::Box:
+      return std::make_unique<btBoxShape>(bt(s.halfExtents));
+    case ShapeType::Capsule:  // btCapsuleShape: axis along local Y, height = distance between the cap centres
+      return std::make_unique<btCapsuleShape>(btScalar(s.radius), btScalar(2 * s.halfHeight));
+    case ShapeType::Cylinder:  // btCylinderShape: axis along local Y, half extents (r, h, r)
+      return std::make_unique<btCylinderShape>(btVector3(btScalar(s.radius), btScalar(s.halfHeight), btScalar(s.radius)));
+    case ShapeType::Plane:
+      return std::make_unique<btStaticPlaneShape>(bt(s.normal.normalized()), btScalar(s.offset));
+    default:
+      return nullptr;
+  }
+}
+
+}  // namespace
+
 std::string bulletUnsupported(const Model& model) {
-  if (!model.joints.empty()) return "the scene has joints";
-  for (const Body& b : model.bodies)
-    if (b.shape.type != ShapeType::Box)
-      return "body \"" + b.name + "\" is a " + shapeTypeName(b.shape.type) + " (the Bullet peer builds boxes only)";
+  for (const Body& b : model.bodies) {
+    const ShapeType t = b.shape.type;
+    if (t == ShapeType::ConvexMesh || t == ShapeType::TriangleMesh)
+      return "body \"" + b.name + "\" is a " + shapeTypeName(t) +
+             " (the Bullet peer maps spheres, boxes, capsules, cylinders and static planes)";
+    if (t == ShapeType::Plane && !b.isStatic) return "body \"" + b.name + "\" is a dynamic plane";
+  }
+  for (const Joint& j : model.joints) {
+    if (j.type == JointType::Spring || j.type == JointType::Motor)
+      return "joint \"" + j.name + "\" is a " + jointTypeName(j.type) +
+             " (the Bullet peer maps ball, hinge, cone_twist and fixed joints)";
+    if (j.type == JointType::Hinge && j.hasMotor) return "joint \"" + j.name + "\" is a hinge with a motor (not mapped)";
+  }
   return {};
 }
 
@@ -28,12 +105,15 @@ struct BulletPeer::Impl {
   btDbvtBroadphase broadphase;
   btSequentialImpulseConstraintSolver solver;
   btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
-  std::vector<std::unique_ptr<btBoxShape>> shapes;
+  std::vector<std::unique_ptr<btCollisionShape>> shapes;
   std::vector<std::unique_ptr<btDefaultMotionState>> motionStates;
   std::vector<std::unique_ptr<btRigidBody>> bodies;
+  std::vector<std::unique_ptr<btTypedConstraint>> constraints;
 
   ~Impl() {
-    // Remove the bodies before the world they are in goes away (members die in reverse order).
+    // Remove the constraints and bodies before the world they are in goes away (members die in
+    // reverse order).
+    for (auto& c : constraints) world.removeConstraint(c.get());
     for (auto& b : bodies) world.removeRigidBody(b.get());
   }
 };
@@ -45,36 +125,84 @@ BulletPeer::BulletPeer(const Model& model, const State& initial, double dt, int 
   if (initial.bodies.size() != model.bodies.size()) throw std::invalid_argument("Bullet peer: state and model differ");
   Impl& m = *impl_;
   m.dt = dt;
-  m.world.setGravity(btVector3(btScalar(model.gravity.x()), btScalar(model.gravity.y()), btScalar(model.gravity.z())));
+  m.world.setGravity(bt(model.gravity));
   m.world.getSolverInfo().m_numIterations = iterations;
 
   for (size_t i = 0; i < model.bodies.size(); ++i) {
     const Body& b = model.bodies[i];
     const BodyState& s = initial.bodies[i];
-    const Vec3& he = b.shape.halfExtents;
-    auto shape = std::make_unique<btBoxShape>(btVector3(btScalar(he.x()), btScalar(he.y()), btScalar(he.z())));
+    std::unique_ptr<btCollisionShape> shape = makeShape(b.shape);
+    if (!shape) throw std::invalid_argument("Bullet peer: body \"" + b.name + "\": shape not mapped");
+    // Our body frame is the centre of mass and the principal axes, so Bullet's local inertia is
+    // our diagonal (not the shape's own calculateLocalInertia(), which for capsules and cylinders
+    // is only an approximation).
     const btScalar mass = b.isStatic ? btScalar(0) : btScalar(b.mass);
-    btVector3 inertia(0, 0, 0);
-    if (!b.isStatic) shape->calculateLocalInertia(mass, inertia);
+    const btVector3 inertia = b.isStatic ? btVector3(0, 0, 0) : bt(b.inertia);
     btTransform pose;
     pose.setIdentity();
-    pose.setOrigin(btVector3(btScalar(s.x.x()), btScalar(s.x.y()), btScalar(s.x.z())));
-    pose.setRotation(btQuaternion(btScalar(s.q.x()), btScalar(s.q.y()), btScalar(s.q.z()), btScalar(s.q.w())));
+    pose.setOrigin(bt(s.x));
+    pose.setRotation(bt(s.q.normalized()));
     auto motion = std::make_unique<btDefaultMotionState>(pose);
     btRigidBody::btRigidBodyConstructionInfo info(mass, motion.get(), shape.get(), inertia);
     info.m_friction = btScalar(b.friction);
     info.m_restitution = btScalar(b.restitution);
     auto body = std::make_unique<btRigidBody>(info);
     if (!b.isStatic) {
-      const Vec3 w = s.worldAngularVelocity();
-      body->setLinearVelocity(btVector3(btScalar(s.v.x()), btScalar(s.v.y()), btScalar(s.v.z())));
-      body->setAngularVelocity(btVector3(btScalar(w.x()), btScalar(w.y()), btScalar(w.z())));
+      body->setLinearVelocity(bt(s.v));
+      body->setAngularVelocity(bt(s.worldAngularVelocity()));
     }
     body->setActivationState(DISABLE_DEACTIVATION);  // no sleeping, for every body
     m.world.addRigidBody(body.get());
     m.shapes.push_back(std::move(shape));
     m.motionStates.push_back(std::move(motion));
     m.bodies.push_back(std::move(body));
+  }
+
+  for (const Joint& j : model.joints) {
+    btRigidBody& A = *m.bodies.at(static_cast<size_t>(j.bodyA));
+    btRigidBody& B = *m.bodies.at(static_cast<size_t>(j.bodyB));
+    std::unique_ptr<btTypedConstraint> c;
+    btTransform fa, fb;
+    switch (j.type) {
+      case JointType::Ball:
+        c = std::make_unique<btPoint2PointConstraint>(A, B, bt(j.localAnchorA), bt(j.localAnchorB));
+        break;
+      case JointType::Hinge: {
+        // Bullet turns about the frames' z. Limits: ours [lower, upper] about the middle, in
+        // frames turned by that middle; Bullet's defaults otherwise (softness 0.9, bias 0.3,
+        // relaxation 1).
+        const double mid = j.hasLimits ? 0.5 * (j.lower + j.upper) : 0.0;
+        jointFrames(j, 2, mid, fa, fb);
+        auto h = std::make_unique<btHingeConstraint>(A, B, fa, fb, false);
+        if (j.hasLimits) {
+          const double half = 0.5 * (j.upper - j.lower);
+          h->setLimit(btScalar(-half), btScalar(half));
+        }
+        c = std::move(h);
+        break;
+      }
+      case JointType::ConeTwist: {
+        // Bullet twists about the frames' x; a circular cone (both swing spans = our swing) and a
+        // symmetric twist limit |twist| <= (upper - lower)/2 about the middle of ours. Without
+        // limits the twist is free (a negative twist span). Bullet's defaults otherwise
+        // (softness 1, bias 0.3, relaxation 1).
+        const double mid = j.hasLimits ? 0.5 * (j.lower + j.upper) : 0.0;
+        jointFrames(j, 0, mid, fa, fb);
+        auto ct = std::make_unique<btConeTwistConstraint>(A, B, fa, fb);
+        const double twistSpan = j.hasLimits ? 0.5 * (j.upper - j.lower) : -1.0;
+        ct->setLimit(btScalar(j.swing), btScalar(j.swing), btScalar(twistSpan));
+        c = std::move(ct);
+        break;
+      }
+      case JointType::Fixed:
+        jointFrames(j, 0, 0.0, fa, fb);
+        c = std::make_unique<btFixedConstraint>(A, B, fa, fb);
+        break;
+      default:
+        throw std::invalid_argument("Bullet peer: joint \"" + j.name + "\" is not mapped");
+    }
+    m.world.addConstraint(c.get(), /*disableCollisionsBetweenLinkedBodies=*/!j.collide);
+    m.constraints.push_back(std::move(c));
   }
 }
 
@@ -89,10 +217,15 @@ int BulletPeer::contactPoints() const {
   return n;
 }
 
-Vec3 BulletPeer::position(size_t body) const {
-  const btVector3& p = impl_->bodies.at(body)->getCenterOfMassPosition();
-  return Vec3(double(p.x()), double(p.y()), double(p.z()));
+Vec3 BulletPeer::position(size_t body) const { return fromBt(impl_->bodies.at(body)->getCenterOfMassPosition()); }
+
+Pose BulletPeer::pose(size_t body) const {
+  const btTransform& t = impl_->bodies.at(body)->getCenterOfMassTransform();
+  const btQuaternion q = t.getRotation();
+  return Pose{fromBt(t.getOrigin()), Quat(double(q.w()), double(q.x()), double(q.y()), double(q.z())).normalized()};
 }
+
+Vec3 BulletPeer::velocity(size_t body) const { return fromBt(impl_->bodies.at(body)->getLinearVelocity()); }
 
 bool BulletPeer::finite() const {
   for (size_t i = 0; i < impl_->bodies.size(); ++i)

@@ -1,0 +1,168 @@
+#include "render/fxaa.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+
+namespace substep::render {
+
+namespace {
+
+// Steps of the edge-end search after the first (pixels along the edge), lengthening as FXAA's
+// quality presets do: up to 34 pixels each way.
+constexpr int kSearchSteps[] = {1, 1, 1, 2, 2, 2, 4, 8, 12};
+constexpr int kSearchReach = 1 + 1 + 1 + 1 + 2 + 2 + 2 + 4 + 8 + 12;
+
+// A row's pixels made opaque: the alpha held the luma. Pixels as 32-bit words, alpha the high
+// byte (little-endian), so the loop vectorises.
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "RGBA as little-endian words");
+void opaqueRow(const uint8_t* __restrict in, uint8_t* __restrict out, int width) {
+  for (int x = 0; x < width; ++x) {
+    uint32_t p;
+    std::memcpy(&p, in + 4 * x, 4);
+    p |= 0xff000000u;
+    std::memcpy(out + 4 * x, &p, 4);
+  }
+}
+
+// The alpha bytes of a row, with the end pixels repeated on either side: a[-1] .. a[width].
+void alphaRow(const uint8_t* __restrict in, uint8_t* __restrict a, int width) {
+  for (int x = 0; x < width; ++x) a[x] = in[4 * x + 3];
+  a[-1] = a[0];
+  a[width] = a[width - 1];
+}
+
+// Marks the pixels of a row whose contrast with their four neighbours is an edge's (on the luma
+// in bits 1-7 of the alpha) and that are not smooth along with all four (bit 0). Returns whether
+// any is.
+bool edgeRow(const uint8_t* __restrict up, const uint8_t* __restrict mid, const uint8_t* __restrict down,
+             uint8_t* __restrict edge, int width, int minRange, int share) {
+  int any = 0;
+  for (int x = 0; x < width; ++x) {
+    const uint8_t n = up[x], s = down[x], w = mid[x - 1], e = mid[x + 1], m = mid[x];
+    const int hi = std::max(std::max(std::max(n, s), std::max(w, e)), m) >> 1;
+    const int lo = std::min(std::min(std::min(n, s), std::min(w, e)), m) >> 1;
+    const int range = hi - lo;
+    const int smooth = n & s & w & e & m & 1;
+    const int on = (range >= minRange) & (range * 1024 >= hi * share) & (smooth ^ 1);
+    edge[x] = static_cast<uint8_t>(on);
+    any |= on;
+  }
+  return any != 0;
+}
+
+}  // namespace
+
+void copyOpaque(const uint8_t* src, long srcStride, int width, int height, Image& dst) {
+  if (dst.width != width || dst.height != height) dst = Image(width, height);
+  for (int y = 0; y < height; ++y)
+    opaqueRow(src + static_cast<long>(y) * srcStride, &dst.rgba[static_cast<size_t>(y) * width * 4], width);
+}
+
+FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image& dst,
+               const std::vector<PixelRect>& keep, const FxaaOptions& options) {
+  FxaaStats stats;
+  if (dst.width != width || dst.height != height) dst = Image(width, height);
+  if (width <= 0 || height <= 0) return stats;
+  const int W = width, H = height;
+  auto row = [&](int y) { return src + static_cast<long>(y) * srcStride; };
+  auto L = [&](int x, int y) { return static_cast<int>(row(y)[4 * x + 3] >> 1); };  // luma 0-127
+
+  // Alpha of rows y-1, y, y+1 (rolling), with a pixel of margin each side.
+  thread_local std::vector<uint8_t> buffers, edges;
+  buffers.resize(3 * static_cast<size_t>(W + 2));
+  edges.resize(static_cast<size_t>(W));
+  uint8_t* rows[3] = {&buffers[1], &buffers[static_cast<size_t>(W) + 3], &buffers[2 * static_cast<size_t>(W) + 5]};
+  alphaRow(row(0), rows[1], W);
+  std::memcpy(rows[0] - 1, rows[1] - 1, static_cast<size_t>(W) + 2);
+
+  const int minRange = static_cast<int>(std::ceil(options.edgeThresholdMin * 127));
+  const int share = static_cast<int>(std::lround(options.edgeThreshold * 1024));
+
+  for (int y = 0; y < H; ++y) {
+    if (y + 1 < H)
+      alphaRow(row(y + 1), rows[2], W);
+    else
+      std::memcpy(rows[2] - 1, rows[1] - 1, static_cast<size_t>(W) + 2);
+    const uint8_t* in = row(y);
+    uint8_t* out = &dst.rgba[static_cast<size_t>(y) * W * 4];
+    opaqueRow(in, out, W);
+    const bool any = edgeRow(rows[0], rows[1], rows[2], edges.data(), W, minRange, share);
+    std::rotate(rows, rows + 1, rows + 3);
+    if (!any) continue;
+    for (const PixelRect& r : keep)
+      if (y >= r.y0 && y < r.y1)
+        for (int x = std::max(r.x0, 0); x < std::min(r.x1, W); ++x) edges[static_cast<size_t>(x)] = 0;
+
+    for (int x = 0; x < W; ++x) {
+      if (!edges[static_cast<size_t>(x)]) continue;
+      const int xl = std::max(x - 1, 0), xr = std::min(x + 1, W - 1), yu = std::max(y - 1, 0), yd = std::min(y + 1, H - 1);
+      const int lM = L(x, y), lN = L(x, yu), lS = L(x, yd), lW = L(xl, y), lE = L(xr, y);
+      const int lNW = L(xl, yu), lNE = L(xr, yu), lSW = L(xl, yd), lSE = L(xr, yd);
+      const int range = std::max({lM, lN, lS, lW, lE}) - std::min({lM, lN, lS, lW, lE});
+
+      // Luma changing across rows: a horizontal edge (searched along x), else a vertical one.
+      const int edgeHorz = std::abs(lNW + lSW - 2 * lW) + 2 * std::abs(lN + lS - 2 * lM) + std::abs(lNE + lSE - 2 * lE);
+      const int edgeVert = std::abs(lNW + lNE - 2 * lN) + 2 * std::abs(lW + lE - 2 * lM) + std::abs(lSW + lSE - 2 * lS);
+      const bool horz = edgeHorz >= edgeVert;
+      const int l1 = horz ? lN : lW, l2 = horz ? lS : lE;
+      const bool side1 = std::abs(l1 - lM) >= std::abs(l2 - lM);
+      const int lAcross = side1 ? l1 : l2;
+      const int px = horz ? 0 : (side1 ? -1 : 1), py = horz ? (side1 ? -1 : 1) : 0;  // to the pixel across
+      const int xa = x + px, ya = y + py;
+      if (xa < 0 || xa >= W || ya < 0 || ya >= H) continue;
+      const int gradient = std::max(std::abs(l1 - lM), std::abs(l2 - lM));
+      const int pairSum = lM + lAcross;  // twice the luma half way across
+      const bool mBelow = 2 * lM < pairSum;
+
+      // Search both ways along the edge, on the line half way to the pixel across, for where the
+      // luma pair stops looking like this edge: its mean moves a quarter of the gradient away.
+      // end(k) is twice that mean's departure; done when |end| >= gradient / 2.
+      const int reachN = std::min(kSearchReach, horz ? x : y), reachP = std::min(kSearchReach, horz ? W - 1 - x : H - 1 - y);
+      auto end = [&](int k) {
+        const int x0 = x + (horz ? k : 0), y0 = y + (horz ? 0 : k);
+        return L(x0, y0) + L(x0 + px, y0 + py) - pairSum;
+      };
+      int posN = std::min(1, reachN), posP = std::min(1, reachP);
+      int endN = end(-posN), endP = end(posP);
+      bool doneN = 2 * std::abs(endN) >= gradient || posN == reachN;
+      bool doneP = 2 * std::abs(endP) >= gradient || posP == reachP;
+      for (int step : kSearchSteps) {
+        if (doneN && doneP) break;
+        if (!doneN) {
+          posN = std::min(posN + step, reachN);
+          endN = end(-posN);
+          doneN = 2 * std::abs(endN) >= gradient || posN == reachN;
+        }
+        if (!doneP) {
+          posP = std::min(posP + step, reachP);
+          endP = end(posP);
+          doneP = 2 * std::abs(endP) >= gradient || posP == reachP;
+        }
+      }
+      // The nearer end decides: this pixel is blended by how near it lies, when the luma there
+      // moves the way that makes this pixel the edge's (FXAA's "good span").
+      const bool towardsN = posN < posP;
+      const bool goodSpan = towardsN ? ((endN < 0) != mBelow) : ((endP < 0) != mBelow);
+      const float span = static_cast<float>(std::max(posN + posP, 1));
+      const float offsetEdge = goodSpan ? 0.5f - static_cast<float>(std::min(posN, posP)) / span : 0.0f;
+      // Sub-pixel: a pixel unlike all its neighbours (a thin line, a corner) is softened.
+      const float average = static_cast<float>(2 * (lN + lS + lW + lE) + lNW + lNE + lSW + lSE) / 12.0f;
+      const float c = std::min(std::abs(average - static_cast<float>(lM)) / static_cast<float>(std::max(range, 1)), 1.0f);
+      const float f = (3 - 2 * c) * c * c;
+      const float offset = std::max(offsetEdge, f * f * options.subpix);
+      if (offset <= 0.0f) continue;
+
+      const uint8_t* m = in + 4 * x;
+      const uint8_t* a = row(ya) + 4 * xa;
+      uint8_t* o = out + 4 * x;
+      for (int ch = 0; ch < 3; ++ch)
+        o[ch] = static_cast<uint8_t>(static_cast<float>(m[ch]) + (static_cast<float>(a[ch]) - m[ch]) * offset + 0.5f);
+      ++stats.edgePixels;
+    }
+  }
+  return stats;
+}
+
+}  // namespace substep::render
