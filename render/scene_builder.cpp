@@ -257,6 +257,7 @@ std::string settingsLine(const SolverSettings& s) {
   else if (s.algorithm == Algorithm::A2)
     o += fmt("  ω=%g", s.omega);
   if (s.warmStart) o += "  warm";
+  if (s.splitImpulse) o += "  split";
   return o;
 }
 
@@ -275,6 +276,7 @@ std::string shortSettingsLine(const SolverSettings& s) {
   }
   if (std::abs(s.dt - 1.0 / 60) > 1e-12) o += fmt(" h=%g", s.dt);
   if (s.warmStart) o += " warm";
+  if (s.splitImpulse) o += " split";
   return o;
 }
 

@@ -1,4 +1,6 @@
 // The substep executable: exit statuses, messages, outputs. Runs the built binary.
+#include "run_substep.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -18,26 +20,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Outcome {
-  int status;
-  std::string output;  // stdout and stderr
-};
+using substep_test::Outcome;
 
-Outcome run(const std::string& args) {
-  const std::string cmd = std::string("cd " SUBSTEP_SOURCE_DIR " && " SUBSTEP_EXE " ") + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  Outcome r{-1, ""};
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-  const int st = pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+Outcome run(const std::string& args) { return substep_test::runSubstep(args); }
 
 // A folder per test: CTest runs the tests in parallel, and some look at what is in theirs.
 fs::path scratch(const std::string& name) {
-  fs::path d = fs::path(SUBSTEP_BINARY_DIR) / "test_cli_out" / ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  const fs::path d = substep_test::scratchFolder("test_cli_out");
   fs::create_directories(d);
   return d / name;
 }

@@ -293,6 +293,10 @@ TEST(SceneBuilder, HudSaysSceneSettingsTimeAndCost) {
   SolverSettings a2;
   a2.iterations = 4;
   EXPECT_EQ(shortSettingsLine(a2), "a2 m=4");
+  a2.warmStart = a2.splitImpulse = true;
+  EXPECT_EQ(shortSettingsLine(a2), "a2 m=4 warm split");
+  EXPECT_NE(settingsLine(a2).find("  warm  split"), std::string::npos) << settingsLine(a2);
+  a2.warmStart = a2.splitImpulse = false;
   HudInfo hud;
   hud.scene = sceneLine(s);
   hud.settings = line;

@@ -1,6 +1,7 @@
 // `substep render`: outputs (PNG, PNG sequence, MP4), comparisons, progress, bad input (exit 2),
 // divergence (exit 3), a failing ffmpeg (exit 1), and nothing partial left behind. Runs the binary.
 #include "render/image.h"
+#include "run_substep.h"
 
 #include <gtest/gtest.h>
 
@@ -19,27 +20,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Outcome {
-  int status;
-  std::string output;  // stdout and stderr
-};
+using substep_test::Outcome;
 
-Outcome run(const std::string& args, const std::string& env = "") {
-  const std::string cmd = "cd " SUBSTEP_SOURCE_DIR " && " + env + " " SUBSTEP_EXE " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  Outcome r{-1, ""};
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-  const int st = pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+Outcome run(const std::string& args, const std::string& env = "") { return substep_test::runSubstep(args, env); }
 
 // A folder per test (CTest runs tests in parallel), emptied first.
 fs::path scratch() {
-  fs::path d = fs::path(SUBSTEP_BINARY_DIR) / "test_render_cli_out" /
-               ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  const fs::path d = substep_test::scratchFolder("test_render_cli_out");
   fs::remove_all(d);
   fs::create_directories(d);
   return d;

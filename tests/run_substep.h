@@ -1,0 +1,40 @@
+// For the tests that run the built `substep` binary (test_cli, test_render_cli): one call, its
+// exit status and everything it printed, and a scratch folder per test.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+namespace substep_test {
+
+struct Outcome {
+  int status;
+  std::string output;  // stdout and stderr
+};
+
+// Runs `substep ARGS` from the source folder, with `env` (VAR=value ...) in front.
+inline Outcome runSubstep(const std::string& args, const std::string& env = "") {
+  const std::string cmd = "cd " SUBSTEP_SOURCE_DIR " && " + env + " " SUBSTEP_EXE " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  Outcome r{-1, ""};
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+// <build>/<suite>/<test name>/: CTest runs tests in parallel, and some look at what is in theirs.
+inline std::filesystem::path scratchFolder(const std::string& suite) {
+  return std::filesystem::path(SUBSTEP_BINARY_DIR) / suite /
+         ::testing::UnitTest::GetInstance()->current_test_info()->name();
+}
+
+}  // namespace substep_test
