@@ -5,6 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
+
 using namespace substep;
 
 namespace {
@@ -73,4 +76,77 @@ TEST(Resting, StackOfFiveUnderA1) {
 TEST(Resting, PendulumChainUnderA1MeetsTheResidual) {
   const RestResult r = rest("pendulum_chain.json", algo(Algorithm::A1), 3);
   EXPECT_LT(r.maxResidual, 1e-9);
+}
+
+// Why one sweep per (sub-)step cannot hold a tall pyramid (docs/algorithms.md, "Where
+// sub-stepping fails"). The pyramid's normal contact rows, as World builds them, iterated as a
+// linear map: a velocity error v (in the range of M̌⁻¹J̌ᵀ), then each step the last step's
+// impulses are applied again (warm starting) and `sweeps` Gauss-Seidel sweeps solve J̌v = 0. No
+// bias, no clamping, no gravity: the map converges, but with one sweep the constraint velocity
+// |J̌v| first grows, by a factor that rises steeply with the height; with two sweeps it does not.
+// With λ >= 0, that transient growth lifts contacts off and the pyramid walks apart.
+namespace {
+
+double transientGrowth(int levels, int sweeps) {
+  const Scene s = parseScene(R"({"bodies": [{"name": "ground", "static": true, "shape": {"type": "box",
+      "half_extents": [20, 0.5, 10]}, "position": [0, -0.5, 0]}], "generators": [{"type": "pyramid", "name": "p",
+      "levels": )" + std::to_string(levels) + R"(, "half_extents": [0.5, 0.5, 0.5], "gap": 0.01}]})",
+                             "<pyramid>", ".");
+  World world(s.model, resolve(SolverOverrides{}), s.initial);
+  world.step();
+  const ConstraintSet& cs = world.constraints();
+  std::vector<Row> rows;
+  for (const ContactDef& c : cs.contacts) {
+    // The load-bearing rows (vertical normals); not the speculative points across the 1 cm gaps
+    // between neighbours of one level, which only stop them from closing the gap.
+    const Row& r = cs.rows[static_cast<size_t>(c.row)];
+    if (std::abs(r.linA.y()) > 0.9) rows.push_back(r);
+  }
+  EXPECT_EQ(rows.size(), static_cast<size_t>(4 * levels * levels));  // 4 corners on L ground and L(L-1) box faces
+  const size_t nb = s.model.bodies.size();
+  std::vector<Vec3> v(nb, Vec3::Zero()), w(nb, Vec3::Zero());
+  auto residual = [&] {
+    double sum = 0;
+    for (const Row& r : rows) sum += std::pow(rowVelocity(r, v.data(), w.data()), 2);
+    return std::sqrt(sum);
+  };
+  // A reproducible error in the range of M̌⁻¹J̌ᵀ, scaled to |J̌v| = 1.
+  uint64_t seed = 3;
+  for (const Row& r : rows) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    applyImpulse(r, static_cast<double>(seed >> 11) / 9007199254740992.0 - 0.5, v.data(), w.data());
+  }
+  const double scale = 1 / residual();
+  for (size_t i = 0; i < nb; ++i) v[i] *= scale, w[i] *= scale;
+  std::vector<double> lambda(rows.size(), 0.0);
+  double first = 0, peak = 0;
+  for (int step = 0; step < 120; ++step) {
+    for (size_t k = 0; k < rows.size(); ++k) applyImpulse(rows[k], lambda[k], v.data(), w.data());
+    for (int sweep = 0; sweep < sweeps; ++sweep)
+      for (size_t k = 0; k < rows.size(); ++k) {
+        const double dl = -rows[k].effMass * rowVelocity(rows[k], v.data(), w.data());
+        lambda[k] += dl;
+        applyImpulse(rows[k], dl, v.data(), w.data());
+      }
+    const double r = residual();
+    if (step == 0) first = r;
+    peak = std::max(peak, r);
+  }
+  return peak / first;
+}
+
+}  // namespace
+
+TEST(Pyramid, OneWarmStartedSweepAmplifiesErrorsWithHeight) {
+  const double one4 = transientGrowth(4, 1), one8 = transientGrowth(8, 1), one12 = transientGrowth(12, 1);
+  const double one20 = transientGrowth(20, 1), two12 = transientGrowth(12, 2), two20 = transientGrowth(20, 2);
+  std::printf("warm-started Gauss-Seidel on a pyramid's contacts, peak |Jv| over its first value: one sweep "
+              "%.1f (4 levels), %.1f (8), %.1f (12), %.3g (20); two sweeps %.2f (12), %.2f (20)\n",
+              one4, one8, one12, one20, two12, two20);
+  EXPECT_GT(one20, 10 * one12);
+  EXPECT_LT(two20, 1.5);
+  EXPECT_GT(one12, 5.0);
+  EXPECT_GT(one12, 3 * one8);
+  EXPECT_GT(one8, one4);
+  EXPECT_LT(two12, 1.5);
 }
