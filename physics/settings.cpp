@@ -40,6 +40,12 @@ bool subSteps(Algorithm a) { return a == Algorithm::A3 || a == Algorithm::A4 || 
 
 SolverOverrides SolverOverrides::merged(const SolverOverrides& later) const {
   SolverOverrides r = *this;
+  if (later.preset) {  // a later preset replaces what it sets, even where this one set it
+    r.substeps.reset();
+    r.iterations.reset();
+    r.kappa.reset();
+    r.tau.reset();
+  }
   auto take = [](auto& dst, const auto& src) {
     if (src) dst = src;
   };
