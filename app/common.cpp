@@ -67,7 +67,7 @@ SolverOverrides SolverOptions::overrides() const {
 }
 
 SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& cl) {
-  const SolverOverrides merged = scene.solver.merged(cl);
+  const SolverOverrides merged = scene.solver.withCommandLine(cl);
   const Algorithm algo = merged.algorithm.value_or(Algorithm::A2);
   if (!subSteps(algo)) {
     if (cl.substeps && *cl.substeps != 1)

@@ -40,12 +40,6 @@ bool subSteps(Algorithm a) { return a == Algorithm::A3 || a == Algorithm::A4 || 
 
 SolverOverrides SolverOverrides::merged(const SolverOverrides& later) const {
   SolverOverrides r = *this;
-  if (later.preset) {  // a later preset replaces what it sets, even where this one set it
-    r.substeps.reset();
-    r.iterations.reset();
-    r.kappa.reset();
-    r.tau.reset();
-  }
   auto take = [](auto& dst, const auto& src) {
     if (src) dst = src;
   };
@@ -63,6 +57,17 @@ SolverOverrides SolverOverrides::merged(const SolverOverrides& later) const {
   take(r.splitImpulse, later.splitImpulse);
   take(r.preset, later.preset);
   return r;
+}
+
+SolverOverrides SolverOverrides::withCommandLine(const SolverOverrides& commandLine) const {
+  SolverOverrides scene = *this;
+  if (commandLine.preset) {  // the preset replaces what it sets, where the scene set it
+    scene.substeps.reset();
+    scene.iterations.reset();
+    scene.kappa.reset();
+    scene.tau.reset();
+  }
+  return scene.merged(commandLine);
 }
 
 namespace {

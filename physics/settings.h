@@ -39,8 +39,13 @@ struct SolverOverrides {
   std::optional<bool> warmStart, blockSolve, splitImpulse;
   std::optional<std::string> preset;   // Havok's presets, e.g. "4-medium"
 
-  // Later values win: scene.merged(commandLine).
+  // Later values win, field by field: commandLine.merged(comparePanel).
   SolverOverrides merged(const SolverOverrides& later) const;
+  // A scene file's settings under the command line's: as merged(), except that a preset on the
+  // command line also replaces the scene's n, m, κ and τ (what a preset sets), so that
+  // `--preset 4-medium` means Havok's medium preset on any scene. Values given on the command line
+  // next to the preset still win over it (resolve() applies them after the preset).
+  SolverOverrides withCommandLine(const SolverOverrides& commandLine) const;
 };
 
 // Fills what the overrides leave open with the algorithm's defaults: A1/A2 as the report has

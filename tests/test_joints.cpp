@@ -115,15 +115,15 @@ TEST_P(EveryAlgorithm, FixedJointHolds) {
 
 // Why warm starting is not A3-A5's default: one warm-started sweep per sub-step, with τ's position
 // feedback, diverges on the fixed joint above (its linear and angular blocks couple, and one sweep
-// does not settle them); two sweeps, or τ 0.2, hold it. Cold, A3 holds it (FixedJointHolds).
+// does not settle them); two sweeps, or τ 0.2, hold it. Cold, A3-A5 hold it (FixedJointHolds).
 TEST(WarmStart, OneSweepPerSubStepDivergesOnAFixedJoint) {
   const Scene s = sceneFrom(R"({"bodies": [
       {"name": "wall", "static": true, "shape": {"type": "box", "half_extents": [0.1, 1, 1]}, "position": [0, 3, 0]},
       {"name": "beam", "shape": {"type": "box", "half_extents": [1, 0.1, 0.1]}, "position": [1.1, 3, 0], "mass": 5}],
     "joints": [{"type": "fixed", "bodies": ["wall", "beam"], "anchor": [0.1, 3, 0]}]})");
-  auto moved = [&](int sweeps, double tau) {  // the beam's largest displacement in 2 s [m]
+  auto moved = [&](Algorithm a, int sweeps, double tau) {  // the beam's largest displacement in 2 s [m]
     SolverOverrides o;
-    o.algorithm = Algorithm::A3;
+    o.algorithm = a;
     o.warmStart = true;
     o.iterations = sweeps;
     o.tau = tau;
@@ -135,12 +135,14 @@ TEST(WarmStart, OneSweepPerSubStepDivergesOnAFixedJoint) {
     }
     return worst;
   };
-  const double one = moved(1, 0.6), two = moved(2, 0.6), soft = moved(1, 0.2);
-  std::printf("fixed joint, A3 n = 4 warm: one sweep, tau 0.6 %.3g m; two sweeps %.3g m; one sweep, tau 0.2 %.3g m\n",
-              one, two, soft);
-  EXPECT_GT(one, 1.0);
-  EXPECT_LT(two, 0.02);
-  EXPECT_LT(soft, 0.02);
+  for (Algorithm a : {Algorithm::A3, Algorithm::A4, Algorithm::A5}) {
+    const double one = moved(a, 1, 0.6), two = moved(a, 2, 0.6), soft = moved(a, 1, 0.2);
+    std::printf("fixed joint, %s n = 4 warm: one sweep, tau 0.6 %.3g m; two sweeps %.3g m; one sweep, tau 0.2 %.3g m\n",
+                algorithmName(a), one, two, soft);
+    EXPECT_GT(one, 1.0) << algorithmName(a);
+    EXPECT_LT(two, 0.02) << algorithmName(a);
+    EXPECT_LT(soft, 0.02) << algorithmName(a);
+  }
 }
 
 // A stiff spring (a rod) keeps its length while the weight on it swings.
@@ -223,26 +225,40 @@ TEST(Settings, HavokPresetsAndDefaults) {
   EXPECT_THROW(resolve(o), std::invalid_argument);
 }
 
-// A preset on the command line replaces the scene file's κ and τ (pyramid.json sets them); a
-// κ given with the preset still wins over it.
-TEST(Settings, LaterPresetReplacesEarlierKappaAndTau) {
+// A preset on the command line replaces the scene file's n, m, κ and τ (pyramid.json sets κ and
+// τ); a κ given with the preset still wins over it.
+TEST(Settings, CommandLinePresetReplacesTheScenesKappaAndTau) {
   SolverOverrides scene;
   scene.kappa = 0.85;
   scene.tau = 0;
   scene.substeps = 2;
+  scene.iterations = 3;
   SolverOverrides cli;
   cli.algorithm = Algorithm::A5;
   cli.preset = "4-soft";
-  SolverSettings s = resolve(scene.merged(cli));
+  SolverSettings s = resolve(scene.withCommandLine(cli));
   EXPECT_EQ(s.substeps, 4);
+  EXPECT_EQ(s.iterations, 1);
   EXPECT_EQ(s.kappa, 0.9);
   EXPECT_EQ(s.tau, 0.3);
   cli.kappa = 0.7;
-  s = resolve(scene.merged(cli));
+  s = resolve(scene.withCommandLine(cli));
   EXPECT_EQ(s.kappa, 0.7);
   EXPECT_EQ(s.tau, 0.3);
   cli.preset.reset();
-  s = resolve(scene.merged(cli));  // without a preset the scene's values stand
+  s = resolve(scene.withCommandLine(cli));  // without a preset the scene's values stand
   EXPECT_EQ(s.tau, 0.0);
   EXPECT_EQ(s.substeps, 2);
+  // Compare panels (render --compare): the command line's other options apply to every panel,
+  // one that names a preset included.
+  SolverOverrides common;
+  common.kappa = 0.95;
+  SolverOverrides panel;
+  panel.algorithm = Algorithm::A5;
+  panel.preset = "4-medium";
+  s = resolve(scene.withCommandLine(common.merged(panel)));
+  EXPECT_EQ(s.kappa, 0.95);
+  EXPECT_EQ(s.tau, 0.6);
+  EXPECT_EQ(s.substeps, 4);
+  EXPECT_EQ(s.iterations, 1);
 }

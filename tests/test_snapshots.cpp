@@ -126,7 +126,7 @@ Stage stage(const Snapshot& s) {
     for (const CompareSpec& c : parseCompareSpecs(s.compare)) panels.push_back(c.overrides);
   }
   for (const SolverOverrides& o : panels) {
-    st.settings.push_back(resolve(st.scene().solver.merged(o)));
+    st.settings.push_back(resolve(st.scene().solver.withCommandLine(o)));
     st.worlds.push_back(std::make_unique<World>(st.scene().model, st.settings.back(), st.scene().initial));
     World& w = *st.worlds.back();
     while (w.state().time + 0.5 * st.settings.back().dt <= s.time) {

@@ -343,6 +343,10 @@ struct Comparison {
   const Result *a5 = nullptr, *a3 = nullptr, *a4 = nullptr, *a2m4 = nullptr, *bullet = nullptr;
   Ratio a5a3, a5a4, a5a2m4, a5bullet;
   double s3a5a3 = NAN;  // ratio of the velocity stage alone (s3), where the algorithms differ
+  // The goal is judged on the pyramid standing: a5-stack when it ran (at Havok's defaults, a5,
+  // the pyramid falls apart, and a heap of falling boxes is other work than Bullet's pyramid).
+  const Result* goal = nullptr;
+  Ratio goalBullet;
 };
 constexpr double kGoalVsBullet = 0.5;
 constexpr double kDegreesPerRadian = 180 / 3.14159265358979323846;
@@ -365,6 +369,9 @@ std::vector<Comparison> compare(const std::vector<Result>& results) {
     c.a5a2m4 = ratio(c.a5, c.a2m4);
     c.a5bullet = ratio(c.a5, c.bullet);
     if (c.a3 && c.a3->median.stages.s3 > 0) c.s3a5a3 = c.a5->median.stages.s3 / c.a3->median.stages.s3;
+    c.goal = find(results, r.scene, "a5-stack");
+    if (!c.goal) c.goal = c.a5;
+    c.goalBullet = ratio(c.goal, c.bullet);
     list.push_back(c);
   }
   return list;
@@ -429,16 +436,16 @@ void printTables(const std::vector<Result>& results, int steps, std::ostream& ou
     out << line;
   }
   for (const Comparison& c : comps) {
-    if (c.scene != kGoalScene || !c.a5bullet.valid()) continue;
-    const bool met = c.a5bullet.median <= kGoalVsBullet;
+    if (c.scene != kGoalScene || !c.goalBullet.valid()) continue;
+    const bool met = c.goalBullet.median <= kGoalVsBullet;
     const double needed = kGoalVsBullet * c.bullet->median.total;
     out << "\nGoal: A5 (n=4, m=1) on the " << kGoalScene << " at most " << fmt("%.2fx", kGoalVsBullet)
-        << " Bullet's step time: " << (met ? "MET" : "NOT MET") << " (" << ratioText(c.a5bullet) << ", "
-        << fmt("%.3f", c.a5->median.total * 1e3) << " ms against Bullet's " << fmt("%.3f", c.bullet->median.total * 1e3)
-        << " ms";
+        << " Bullet's step time, judged on " << c.goal->c->label << ": " << (met ? "MET" : "NOT MET") << " ("
+        << ratioText(c.goalBullet) << ", " << fmt("%.3f", c.goal->median.total * 1e3) << " ms against Bullet's "
+        << fmt("%.3f", c.bullet->median.total * 1e3) << " ms";
     if (!met)
       out << "; the goal needs <= " << fmt("%.3f", needed * 1e3) << " ms, "
-          << fmt("%.1fx", c.a5->median.total / needed) << " faster than now";
+          << fmt("%.1fx", c.goal->median.total / needed) << " faster than now";
     out << ")\n";
   }
 }
@@ -731,8 +738,11 @@ int bench(const Options& opt) {
                           {"a5_over_a2_m4", ratioJson(c.a5a2m4)},
                           {"a5_over_bullet", ratioJson(c.a5bullet)},
                           {"s3_a5_over_a3", std::isnan(c.s3a5a3) ? nlohmann::json(nullptr) : nlohmann::json(c.s3a5a3)}};
-      if (c.scene == kGoalScene && c.a5bullet.valid())
-        j["goal"] = {{"a5_over_bullet_at_most", kGoalVsBullet}, {"met", c.a5bullet.median <= kGoalVsBullet}};
+      if (c.scene == kGoalScene && c.goalBullet.valid())
+        j["goal"] = {{"case", c.goal->c->id},
+                     {"a5_over_bullet_at_most", kGoalVsBullet},
+                     {"a5_over_bullet", ratioJson(c.goalBullet)},
+                     {"met", c.goalBullet.median <= kGoalVsBullet}};
       comps.push_back(j);
     }
     doc["comparisons"] = comps;
