@@ -85,7 +85,7 @@ const std::vector<Case>& allCases() {
       {"a3",     "a3 (n=4 m=1)",   Engine::Substep, Algorithm::A3, 4, 1,  true},
       {"a4",     "a4 (n=4 m=1)",   Engine::Substep, Algorithm::A4, 4, 1,  true},
       {"a5",     "a5 (n=4 m=1)",   Engine::Substep, Algorithm::A5, 4, 1,  true},
-      {"a5-stack", "a5 (k.85 t0 warm)", Engine::Substep, Algorithm::A5, 4, 1, true, true},
+      {"a5-stack", "a5 k.85 t0 warm", Engine::Substep, Algorithm::A5, 4, 1, true, true},
       {"bullet", "bullet (10 it)", Engine::Bullet,  Algorithm::A2, 1, 10, true},
   };
   return list;
