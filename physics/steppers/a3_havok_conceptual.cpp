@@ -16,25 +16,10 @@ namespace {
 class HavokConceptualStepper final : public Stepper {
  public:
   void stepVelocities(StepContext& c) override {
-    ConstraintSet& cs = *c.constraints;
-    const int n = c.n(), m = c.settings->iterations;
-    const double dt = c.h() / n, kappa = c.settings->kappa, tau = c.settings->tau;
-    c.stats = StepStats{};
-    c.stats.rows = static_cast<int>(cs.rows.size());
-    splitPositionErrors(c);
-    beginSubSteps(c);
-    for (int j = 0; j < n; ++j) {
-      addExternal(c, dt);
-      startSubStepImpulses(c, j);
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = sweep(cs, c.v, c.w, tau, kappa, 1, 1);
-      recordSubStep(c, j);
-      if (j + 1 < n) {
-        advanceSubPoses(c, j, RotationRule::Product);
-        cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Refresh::All, 1.0);
-      }
-    }
-    c.stats.iterations = n * m;
-    solvePositionErrors(c, n * m, 1.0);
+    stepVelocitiesScaled(c, [&c](int j) {  // proc3:15, exactly, from the coordinates at t + (j+1) h/n
+      advanceSubPoses(c, j, RotationRule::Product);
+      c.constraints->reformulate(c.subPoses, c.mass, c.h() / c.n(), ConstraintSet::Refresh::All, 1.0);
+    });
   }
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Product); }

@@ -209,6 +209,25 @@ void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vect
     if (!r.velocityLevel) r.bias -= rowVelocity(r, v.data(), w.data());
 }
 
+void stepVelocitiesScaled(StepContext& c, const std::function<void(int j)>& between) {
+  ConstraintSet& cs = *c.constraints;
+  const int n = c.n(), m = c.settings->iterations;
+  const double dt = c.h() / n, kappa = c.settings->kappa, tau = c.settings->tau;
+  c.stats = StepStats{};
+  c.stats.rows = static_cast<int>(cs.rows.size());
+  splitPositionErrors(c);
+  beginSubSteps(c);
+  for (int j = 0; j < n; ++j) {
+    addExternal(c, dt);
+    startSubStepImpulses(c, j);
+    for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = sweep(cs, c.v, c.w, tau, kappa, 1, 1);
+    recordSubStep(c, j);
+    if (j + 1 < n) between(j);
+  }
+  c.stats.iterations = n * m;
+  solvePositionErrors(c, n * m, 1.0);
+}
+
 void splitPositionErrors(StepContext& c) {
   const size_t nb = c.bodies();
   c.pseudoV.assign(nb, Vec3::Zero());

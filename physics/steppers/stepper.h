@@ -9,6 +9,7 @@
 #include "physics/settings.h"
 #include "physics/state.h"
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -100,6 +101,11 @@ void startSubStepImpulses(StepContext& c, int j);
 // proc4:16, the bias update rule: β ← β - J̌ v̌ for every position-level row: not for friction
 // or motors, whose β is a velocity (IV.3.1.4; docs/algorithms.md).
 void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vector<Vec3>& w);
+// s3 of A3 and A4, which differ only between sub-steps (proc3:5-16, proc4:5-17): per sub-step j
+// ext, the impulses to start from, m sweeps of J̌(κ v̌ + M̌⁻¹J̌ᵀλ) = τβ, the velocities recorded;
+// then, unless j is the last, `between(j)`: A3 re-formulates, A4 updates the biases. Split
+// impulse around it, as every algorithm has it.
+void stepVelocitiesScaled(StepContext& c, const std::function<void(int j)>& between);
 
 // --- split impulse (an extension; docs/algorithms.md) -----------------------------------------
 // With settings.splitImpulse, takes each contact's penetration beyond the slop at the step's start
