@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -84,5 +85,10 @@ class Progress {
 };
 
 double nowSeconds();
+
+// The main of a command-line program: parses argv into `app`, then runs `action`. Exit status:
+// 0 after --help, kExitBadInput for bad arguments or a UsageError, kExitFailure for any other
+// exception, else what `action` returns; errors go to stderr as "program: message".
+int runCommandLine(CLI::App& app, int argc, char** argv, const char* program, const std::function<int()>& action);
 
 }  // namespace substep::app

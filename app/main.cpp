@@ -13,19 +13,5 @@ int main(int argc, char** argv) {
   addRunCommand(app, action);
   addScenesCommand(app, action);
   addRenderCommand(app, action);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : kExitBadInput;
-  }
-  try {
-    return action ? action() : 0;
-  } catch (const UsageError& e) {
-    std::cerr << "substep: " << e.what() << "\n";
-    return kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "substep: " << e.what() << "\n";
-    return kExitFailure;
-  }
+  return runCommandLine(app, argc, argv, "substep", [&] { return action ? action() : 0; });
 }

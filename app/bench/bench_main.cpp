@@ -16,6 +16,7 @@
 // displacement from the start (after 1 s and at the end), the fastest body, the joints' anchor
 // separation and how far joint angles are beyond their limits (physics/constraints/joints.h).
 #include "app/bench/bullet_peer.h"
+#include "app/common.h"
 #include "physics/constraints/joints.h"
 #include "physics/scene_file.h"
 #include "physics/settings.h"
@@ -53,11 +54,11 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-constexpr int kExitFailure = 1, kExitBadInput = 2, kExitNonFinite = 3, kExitNotRepeatable = 4;
-
-struct BadInput : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+// Exit status as the substep program has it (app/common.h), and 4: a case not repeatable.
+using app::kExitBadInput;
+using app::kExitNonFinite;
+constexpr int kExitNotRepeatable = 4;
+using app::UsageError;
 
 // --- the cases --------------------------------------------------------------------------------
 
@@ -260,9 +261,7 @@ Run medianRun(std::vector<Run> runs) {
 
 std::string scenePath(const std::string& name) {
   if (name.find('/') != std::string::npos || (name.size() > 5 && name.substr(name.size() - 5) == ".json")) return name;
-  const char* env = std::getenv("SUBSTEP_ASSETS");
-  const std::string assets = env ? env : std::string(SUBSTEP_SOURCE_DIR) + "/assets";
-  return assets + "/scenes/" + name + ".json";
+  return app::assetsDir() + "/scenes/" + name + ".json";
 }
 
 std::string utcNow() {
@@ -483,33 +482,16 @@ void checkJsonPath(const std::string& path) {
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw BadInput("--json " + path + ": folder " + dir.string() + " does not exist");
-  if (access(dir.c_str(), W_OK) != 0) throw BadInput("--json " + path + ": cannot write in " + dir.string());
-  if (fs::is_directory(target, ec)) throw BadInput("--json " + path + ": is a folder; give a file name");
+  if (!fs::is_directory(dir, ec)) throw UsageError("--json " + path + ": folder " + dir.string() + " does not exist");
+  if (access(dir.c_str(), W_OK) != 0) throw UsageError("--json " + path + ": cannot write in " + dir.string());
+  if (fs::is_directory(target, ec)) throw UsageError("--json " + path + ": is a folder; give a file name");
 }
 
 // Written under a temporary name in the same folder, then renamed over `path`.
 void writeJson(const std::string& path, const nlohmann::json& doc) {
-  namespace fs = std::filesystem;
-  const fs::path target(path);
-  std::error_code ec;
-  const std::string temp = path + ".part" + std::to_string(getpid());
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    if (!out) throw BadInput("--json " + path + ": cannot create " + temp);
-    out << doc.dump(2) << "\n";
-    out.flush();
-    if (!out) {
-      out.close();
-      std::remove(temp.c_str());
-      throw std::runtime_error(path + ": write failed");
-    }
-  }
-  fs::rename(temp, target, ec);
-  if (ec) {
-    std::remove(temp.c_str());
-    throw std::runtime_error(path + ": cannot rename " + temp + " into place: " + ec.message());
-  }
+  app::AtomicFile file(path);
+  file.out() << doc.dump(2) << "\n";
+  file.commit();
 }
 
 // --- main -------------------------------------------------------------------------------------
@@ -564,7 +546,7 @@ int bench(const Options& opt) {
       if (it == allCases().end()) {
         std::string known;
         for (const Case& c : allCases()) known += std::string(known.empty() ? "" : ", ") + c.id;
-        throw BadInput("--algos: unknown case \"" + id + "\"; known: " + known);
+        throw UsageError("--algos: unknown case \"" + id + "\"; known: " + known);
       }
       if (std::find(cases.begin(), cases.end(), &*it) == cases.end()) cases.push_back(&*it);
     }
@@ -582,7 +564,7 @@ int bench(const Options& opt) {
     try {
       scenes.push_back(loadScene(path));
     } catch (const SceneError& e) {
-      throw BadInput(std::string("--scenes: ") + e.what());
+      throw UsageError(std::string("--scenes: ") + e.what());
     }
     names.push_back(std::filesystem::path(path).stem().string());
   }
@@ -599,7 +581,7 @@ int bench(const Options& opt) {
           r.settings = caseSettings(*c, dt);
           World probe(scenes[s].model, r.settings, scenes[s].initial);
         } catch (const std::invalid_argument& e) {
-          throw BadInput(std::string("case ") + c->id + " on " + names[s] + ": " + e.what());
+          throw UsageError(std::string("case ") + c->id + " on " + names[s] + ": " + e.what());
         }
       } else {
         const std::string why = bulletUnsupported(scenes[s].model);
@@ -776,21 +758,9 @@ int main(int argc, char** argv) {
   app.add_option("--algos", opt.algos, algoHelp)->delimiter(',');
   app.add_option("--json", opt.json, "Also write the results as JSON to FILE (written atomically)");
   app.add_flag("--quick", opt.quick, "Smoke test: 10 steps per run unless --steps is given");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : kExitBadInput;
-  }
-  if (opt.quick && stepsOpt->count() == 0) opt.steps = 10;
-  for (int i = 0; i < argc; ++i) opt.command += (i ? " " : "") + std::string(argv[i]);
-  try {
+  return substep::app::runCommandLine(app, argc, argv, "substep-bench", [&] {
+    if (opt.quick && stepsOpt->count() == 0) opt.steps = 10;
+    for (int i = 0; i < argc; ++i) opt.command += (i ? " " : "") + std::string(argv[i]);
     return bench(opt);
-  } catch (const BadInput& e) {
-    std::cerr << "substep-bench: " << e.what() << "\n";
-    return kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "substep-bench: " << e.what() << "\n";
-    return kExitFailure;
-  }
+  });
 }

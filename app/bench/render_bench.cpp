@@ -285,19 +285,5 @@ int main(int argc, char** argv) {
                  "--variant samples=1,aa=fxaa,shadow=512 (keys samples, aa, shadow)");
   app.add_option("--save", o.save, "Also write each scene's last frame to this folder as SCENE.png")
       ->check(CLI::ExistingDirectory);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : kExitBadInput;
-  }
-  try {
-    return run(o);
-  } catch (const UsageError& e) {
-    std::cerr << "substep-render-bench: " << e.what() << "\n";
-    return kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "substep-render-bench: " << e.what() << "\n";
-    return kExitFailure;
-  }
+  return runCommandLine(app, argc, argv, "substep-render-bench", [&] { return run(o); });
 }
