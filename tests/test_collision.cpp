@@ -30,6 +30,16 @@ Shape cylinder(double r, double hh) {
   s.type = ShapeType::Cylinder;
   return s;
 }
+// A 10 m square of two triangles at y = 0, facing up: a static triangle-mesh ground.
+Shape groundMesh() {
+  auto mesh = std::make_shared<Mesh>();
+  mesh->vertices = {Vec3(-5, 0, -5), Vec3(5, 0, -5), Vec3(5, 0, 5), Vec3(-5, 0, 5)};
+  mesh->triangles = {{0, 2, 1}, {0, 3, 2}};
+  Shape m;
+  m.type = ShapeType::TriangleMesh;
+  m.mesh = mesh;
+  return m;
+}
 Shape sphere(double r) {
   Shape s;
   s.type = ShapeType::Sphere;
@@ -143,12 +153,7 @@ TEST(Narrowphase, PlaneAndTriangleMeshGiveAFace) {
   const ContactPatch p = collide(box(0.5, 0.5, 0.5), Pose{Vec3(0, 0.49, 0), Quat::Identity()}, plane, Pose{});
   ASSERT_EQ(p.count, 4);
   expectConsistent(p);
-  auto mesh = std::make_shared<Mesh>();
-  mesh->vertices = {Vec3(-5, 0, -5), Vec3(5, 0, -5), Vec3(5, 0, 5), Vec3(-5, 0, 5)};
-  mesh->triangles = {{0, 2, 1}, {0, 3, 2}};
-  Shape m;
-  m.type = ShapeType::TriangleMesh;
-  m.mesh = mesh;
+  const Shape m = groundMesh();
   const ContactPatch q = collide(box(0.5, 0.5, 0.5), Pose{Vec3(0.2, 0.49, 0.1), Quat::Identity()}, m, Pose{});
   ASSERT_EQ(q.count, 4);
   expectConsistent(q);
@@ -277,12 +282,7 @@ TEST(Narrowphase, SpeculativePointsWithinTheMargin) {
   const ContactPatch pl = collide(b, Pose{Vec3(0, 0.503, 0), Quat::Identity()}, plane, Pose{});
   ASSERT_EQ(pl.count, 4);
   EXPECT_NEAR(pl.p[0].depth, -0.003, 1e-12);
-  auto mesh = std::make_shared<Mesh>();
-  mesh->vertices = {Vec3(-5, 0, -5), Vec3(5, 0, -5), Vec3(5, 0, 5), Vec3(-5, 0, 5)};
-  mesh->triangles = {{0, 2, 1}, {0, 3, 2}};
-  Shape m;
-  m.type = ShapeType::TriangleMesh;
-  m.mesh = mesh;
+  const Shape m = groundMesh();
   const ContactPatch sm = collide(sphere(0.3), Pose{Vec3(0.7, 0.31, 1.2), Quat::Identity()}, m, Pose{}, 0.02);
   ASSERT_EQ(sm.count, 1);
   EXPECT_NEAR(sm.p[0].depth, -0.01, 1e-9);
