@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <limits>
@@ -14,22 +15,33 @@ namespace substep::app {
 
 namespace {
 
+namespace fs = std::filesystem;
+
 struct RunOptions {
   std::string scene;
   SolverOptions solver;
   std::optional<long long> steps;
   std::optional<double> seconds;
-  std::string trajectory, metrics;
+  std::optional<std::string> trajectory, metrics;
   long long every = 1;
   bool quiet = false;
+  SceneLimits limits;
 };
+
+// A CSV field: quoted when it holds a comma or a quote (body names may).
+std::string csvField(const std::string& s) {
+  if (s.find_first_of(",\"") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
 
 void writeTrajectoryRows(std::ostream& o, const Model& m, const State& s) {
   for (size_t i = 0; i < m.bodies.size(); ++i) {
     if (m.bodies[i].isStatic) continue;
     const BodyState& b = s.bodies[i];
     const Vec3 w = b.worldAngularVelocity();
-    o << s.step << ',' << s.time << ',' << m.bodies[i].name << ',' << b.x.x() << ',' << b.x.y() << ',' << b.x.z() << ','
+    o << s.step << ',' << s.time << ',' << csvField(m.bodies[i].name) << ',' << b.x.x() << ',' << b.x.y() << ',' << b.x.z() << ','
       << b.q.w() << ',' << b.q.x() << ',' << b.q.y() << ',' << b.q.z() << ',' << b.v.x() << ',' << b.v.y() << ','
       << b.v.z() << ',' << w.x() << ',' << w.y() << ',' << w.z() << '\n';
   }
@@ -52,27 +64,35 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
   opt->solver.add(*cmd);
   auto* steps = cmd->add_option("--steps", opt->steps, "Number of steps to take")->check(CLI::Range(1LL, 1000000000LL));
   auto* secs = cmd->add_option("--seconds", opt->seconds, "Simulated time to cover [s] (default 5)")
-                   ->check(CLI::Range(1e-9, 1e7));
+                   ->check(finiteIn(1e-9, 1e7));
   steps->excludes(secs);
   cmd->add_option("--trajectory", opt->trajectory, "Write every body's state to this CSV file");
   cmd->add_option("--every", opt->every, "Keep every K-th step in the trajectory and metrics (first and last always)")
       ->check(CLI::Range(1LL, 1000000000LL));
   cmd->add_option("--metrics", opt->metrics, "Write stage times, constraint violation and energies to this JSON file");
-  cmd->add_flag("--quiet,-q", opt->quiet, "Print nothing but errors");
+  cmd->add_flag("--quiet,-q", opt->quiet, "Print nothing but errors (no progress bar either)");
+  addMaxBodies(*cmd, opt->limits);
   cmd->callback([opt, &action] {
     action = [opt] {
-      const Scene scene = load(opt->scene);
+      for (const auto* o : {&opt->trajectory, &opt->metrics})
+        if (*o && (*o)->empty())
+          throw UsageError(std::string(o == &opt->trajectory ? "--trajectory" : "--metrics") +
+                           ": expected a file name, got an empty one");
+      if (opt->trajectory && opt->metrics && samePath(*opt->trajectory, *opt->metrics))
+        throw UsageError("--trajectory and --metrics name the same file " + *opt->metrics +
+                         "; give each its own");
+      const Scene scene = load(opt->scene, opt->limits);
       const SolverSettings settings = resolveSettings(scene, opt->solver.overrides());
       const long long steps =
           opt->steps ? *opt->steps : static_cast<long long>(std::ceil(opt->seconds.value_or(5.0) / settings.dt - 1e-9));
 
       std::unique_ptr<AtomicFile> traj, metrics;
-      if (!opt->trajectory.empty()) {
-        traj = std::make_unique<AtomicFile>(opt->trajectory);
+      if (opt->trajectory) {
+        traj = std::make_unique<AtomicFile>(*opt->trajectory);
         traj->out() << std::setprecision(17);
         traj->out() << "step,time,body,px,py,pz,qw,qx,qy,qz,vx,vy,vz,wx,wy,wz\n";
       }
-      if (!opt->metrics.empty()) metrics = std::make_unique<AtomicFile>(opt->metrics);
+      if (opt->metrics) metrics = std::make_unique<AtomicFile>(*opt->metrics);
 
       World world(scene.model, settings, scene.initial);
       nlohmann::json series = {{"step", nlohmann::json::array()},   {"time", nlohmann::json::array()},
@@ -102,25 +122,36 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
                   << scene.model.joints.size() << " joints)\n"
                   << "solver    " << describe(settings) << "\n";
       sample(nullptr);
-      Progress progress("run", steps);
+      Progress progress("run", steps, !opt->quiet);
+      InterruptGuard interrupt;
       const double wall0 = nowSeconds();
       long long done = 0;
       bool finite = true;
       double maxResidual = 0;
       long long maxIterations = 0, sumIterations = 0;
+      long long directMethods[4] = {0, 0, 0, 0};  // A1: steps answered by Dantzig, Lemke, Gauss-Seidel
       int maxContacts = 0;
       std::string stopReason;
       for (long long k = 1; k <= steps; ++k) {
+        if (InterruptGuard::interrupted()) {
+          progress.finish();
+          std::cerr << "substep run: interrupted at step " << k - 1 << " of " << steps << "; no output written\n";
+          return kExitInterrupted;  // the AtomicFiles remove their temporaries
+        }
         const StepReport& r = world.step();
         done = world.state().step;
         maxResidual = std::max(maxResidual, r.solver.residual);
         maxIterations = std::max<long long>(maxIterations, r.solver.iterations);
         sumIterations += r.solver.iterations;
+        if (r.solver.directMethod >= 1 && r.solver.directMethod <= 3) ++directMethods[r.solver.directMethod];
         maxContacts = std::max(maxContacts, r.contactPoints);
+        if (r.overloaded && k == 1)
+          throw UsageError(scene.file + ": the initial configuration: " + r.problem +
+                           "; move the bodies apart (a scene starts with bodies touching, not inside each other)");
         if (!r.finite) {
           finite = false;
-          stopReason = "the simulation diverged at step " + std::to_string(k) + " (t = " +
-                       std::to_string(world.state().time) + " s): " + r.problem;
+          stopReason = std::string(r.overloaded ? "the simulation stopped" : "the simulation diverged") + " at step " +
+                       std::to_string(k) + " (t = " + std::to_string(world.state().time) + " s): " + r.problem;
           break;
         }
         if (k % opt->every == 0 || k == steps) sample(&r);
@@ -159,6 +190,9 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
         j["solver"] = {{"max_iterations", maxIterations},
                        {"mean_iterations", static_cast<double>(sumIterations) / std::max<long long>(done, 1)},
                        {"max_residual", maxResidual}, {"max_contact_points", maxContacts}};
+        if (settings.algorithm == Algorithm::A1)  // which of A1's solvers answered, in steps
+          j["solver"]["direct_method_steps"] = {
+              {"dantzig", directMethods[1]}, {"lemke", directMethods[2]}, {"gauss_seidel", directMethods[3]}};
         j["max_displacement"] = {{"body", mover}, {"metres", maxMove}};
         j["series"] = series;
         metrics->out() << j.dump(1) << '\n';
@@ -176,8 +210,11 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
                   << worstJoint * 1e3 << " mm\n"
                   << "energy    kinetic " << world.kineticEnergy() << " J, potential " << world.potentialEnergy() << " J\n"
                   << "moved     largest displacement " << maxMove * 1e2 << " cm (" << mover << ")\n";
-        if (traj) std::cout << "wrote     " << opt->trajectory << "\n";
-        if (metrics) std::cout << "wrote     " << opt->metrics << "\n";
+        if (settings.algorithm == Algorithm::A1)
+          std::cout << "a1 solves " << directMethods[1] << " steps by Dantzig, " << directMethods[2] << " by Lemke, "
+                    << directMethods[3] << " by Gauss-Seidel and polish\n";
+        if (traj) std::cout << "wrote     " << *opt->trajectory << "\n";
+        if (metrics) std::cout << "wrote     " << *opt->metrics << "\n";
       }
       if (!finite) {
         std::cerr << "substep run: stopped: " << stopReason << "; outputs hold the steps before it\n";

@@ -1,8 +1,11 @@
 #include "app/common.h"
 
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -19,51 +22,55 @@ namespace substep::app {
 namespace fs = std::filesystem;
 
 void SolverOptions::add(CLI::App& cmd) {
-  cmd.add_option("--algo", algo, "Algorithm of the report: a1 (direct), a2 (PGS/PSOR), a3, a4, a5 (Havok sub-stepping)")
-      ->check(CLI::IsMember({"a1", "a2", "a3", "a4", "a5"}));
-  cmd.add_option("--preset", preset, "Havok preset for a3-a5: 2|4|8 sub-steps, soft|medium|hard, e.g. 4-medium");
-  cmd.add_option("--dt", dt, "Time step h [s] (default from the scene, else 1/60)")->check(CLI::Range(1e-6, 1.0));
-  cmd.add_option("--substeps", substeps, "Sub-steps n per step (a3-a5; default 4)")->check(CLI::Range(1, 1000));
-  cmd.add_option("--iterations", iterations, "a2: iteration cap (default 10); a3-a5: micro-iterations m (default 1)")
-      ->check(CLI::Range(1, 100000));
-  cmd.add_option("--omega", omega, "a2: over-relaxation ω, 0 < ω < 2 (default 1)")->check(CLI::Range(1e-6, 1.999999));
-  cmd.add_option("--tolerance", tolerance, "a2: stop iterating when no row's velocity changes more [m/s] (default 1e-6)")
-      ->check(CLI::Range(0.0, 1e6));
-  cmd.add_option("--kappa", kappa, "κ for a3-a5 (default 1.0)")->check(CLI::Range(1e-6, 10.0));
-  cmd.add_option("--tau", tau, "τ for a3-a5 (default 0.6)")->check(CLI::Range(0.0, 10.0));
-  cmd.add_option("--slop", slop, "Allowed penetration, the report's hi [m] (default 0.001)")->check(CLI::Range(0.0, 1.0));
-  cmd.add_flag("--warm-start", warmStart, "Start each step from the previous step's impulses");
-  cmd.add_flag("--no-warm-start", noWarmStart, "Do not warm start");
-  cmd.add_flag("--block-solve", blockSolve, "Solve unbounded ('stable') constraints as blocks");
-  cmd.add_flag("--no-block-solve", noBlockSolve, "Solve every row on its own");
-  cmd.add_flag("--split-impulse", splitImpulse,
-               "Correct contact penetration with pseudo-velocities, apart from the velocity solve");
-  cmd.add_flag("--no-split-impulse", noSplitImpulse, "Correct penetration through the bias, as the report does");
+  for (const SettingSpec& spec : settingTable()) {
+    const std::string flag = std::string("--") + spec.flag;
+    if (spec.kind == SettingKind::Flag) {
+      auto& f = flags[spec.key];
+      cmd.add_flag(flag, f.first, spec.help);
+      cmd.add_flag("--no-" + std::string(spec.flag), f.second, std::string("Turn ") + flag + " off");
+      continue;
+    }
+    auto& v = values[spec.key];
+    std::string help = spec.help;
+    help += spec.kind == SettingKind::Choice ? "" : std::string("; ") + spec.expected();
+    cmd.add_option(flag, v, help);
+  }
 }
 
 SolverOverrides SolverOptions::overrides() const {
   SolverOverrides o;
-  if (!algo.empty()) o.algorithm = parseAlgorithm(algo);
-  if (!preset.empty()) o.preset = preset;
-  o.dt = dt;
-  o.substeps = substeps;
-  o.iterations = iterations;
-  o.omega = omega;
-  o.tolerance = tolerance;
-  o.kappa = kappa;
-  o.tau = tau;
-  o.slop = slop;
-  if (warmStart && noWarmStart) throw UsageError("--warm-start and --no-warm-start contradict each other");
-  if (blockSolve && noBlockSolve) throw UsageError("--block-solve and --no-block-solve contradict each other");
-  if (splitImpulse && noSplitImpulse)
-    throw UsageError("--split-impulse and --no-split-impulse contradict each other");
-  if (warmStart) o.warmStart = true;
-  if (noWarmStart) o.warmStart = false;
-  if (blockSolve) o.blockSolve = true;
-  if (noBlockSolve) o.blockSolve = false;
-  if (splitImpulse) o.splitImpulse = true;
-  if (noSplitImpulse) o.splitImpulse = false;
+  for (const SettingSpec& spec : settingTable()) {
+    const std::string flag = std::string("--") + spec.flag;
+    if (spec.kind == SettingKind::Flag) {
+      const auto it = flags.find(spec.key);
+      if (it == flags.end()) continue;
+      const auto [on, off] = it->second;
+      if (on && off) throw UsageError(flag + " and --no-" + spec.flag + " contradict each other");
+      if (on || off) spec.setFlag(o, on);
+      continue;
+    }
+    const auto it = values.find(spec.key);
+    if (it == values.end() || !it->second) continue;
+    try {
+      spec.setText(o, *it->second);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(flag + ": " + e.what());
+    }
+  }
   return o;
+}
+
+CLI::Validator finiteIn(double lo, double hi) {
+  const Range r{lo, hi};
+  return CLI::Validator(
+      [r](std::string& s) -> std::string {
+        char* end = nullptr;
+        const double x = std::strtod(s.c_str(), &end);
+        if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(x) || !r.contains(x))
+          return "expected " + r.expected() + ", got \"" + s + "\"";
+        return "";
+      },
+      r.expected());
 }
 
 SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& cl) {
@@ -107,17 +114,32 @@ std::string describe(const SolverSettings& s) {
   return o.str();
 }
 
-Scene load(const std::string& path) {
+Scene load(const std::string& path, const SceneLimits& lim) {
   try {
-    return loadScene(path);
+    return loadScene(path, lim);
   } catch (const SceneError& e) {
     throw UsageError(e.what());
   }
 }
 
+void addMaxBodies(CLI::App& cmd, SceneLimits& lim) {
+  cmd.add_option("--max-bodies", lim.maxBodies,
+                 "Refuse scenes with more bodies (or joints) than this (default " +
+                     std::to_string(limits::kDefaultMaxBodies) + ")")
+      ->check(CLI::Range(1LL, static_cast<long long>(limits::kMaxBodiesCeiling)));
+}
+
 std::string assetsDir() {
   if (const char* env = std::getenv("SUBSTEP_ASSETS")) return env;
   return std::string(SUBSTEP_SOURCE_DIR) + "/assets";
+}
+
+bool samePath(const std::string& a, const std::string& b) {
+  std::error_code ea, eb;
+  if (fs::equivalent(a, b, ea)) return true;
+  const fs::path pa = fs::weakly_canonical(fs::absolute(a), ea).lexically_normal();
+  const fs::path pb = fs::weakly_canonical(fs::absolute(b), eb).lexically_normal();
+  return !ea && !eb && pa == pb;
 }
 
 void checkWritable(const std::string& path, const std::string& what) {
@@ -134,9 +156,30 @@ void checkWritable(const std::string& path, const std::string& what) {
   if (fs::is_directory(p, ec)) throw UsageError(what + ": " + path + " is a folder; give a file name");
 }
 
+std::string temporaryName(const std::string& output) { return output + ".part" + std::to_string(getpid()); }
+
+void removeStaleTemporaries(const std::string& output) {
+  fs::path p(output);
+  while (p.has_filename() == false && p.has_parent_path() && p != p.parent_path()) p = p.parent_path();  // "dir/"
+  const std::string prefix = p.filename().string() + ".part";
+  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string digits = name.substr(prefix.size());
+    if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    const pid_t pid = static_cast<pid_t>(std::stol(digits));
+    if (pid == getpid() || kill(pid, 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    std::error_code rm;
+    fs::remove_all(it->path(), rm);
+  }
+}
+
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   checkWritable(path_, path_);
-  temp_ = path_ + ".part" + std::to_string(getpid());
+  removeStaleTemporaries(path_);
+  temp_ = temporaryName(path_);
   out_.open(temp_, std::ios::binary | std::ios::trunc);
   if (!out_) throw UsageError(path_ + ": cannot create " + temp_ + ": " + std::strerror(errno));
 }
@@ -180,9 +223,35 @@ double nowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-Progress::Progress(std::string label, long long total) : label_(std::move(label)), total_(total), start_(nowSeconds()) {}
+namespace {
+volatile std::sig_atomic_t gSignal = 0;
+int gGuards = 0;
+extern "C" void onSignal(int sig) { gSignal = sig; }
+}  // namespace
+
+InterruptGuard::InterruptGuard() {
+  if (gGuards++ == 0) {
+    gSignal = 0;
+    std::signal(SIGINT, onSignal);
+    std::signal(SIGTERM, onSignal);
+  }
+}
+
+InterruptGuard::~InterruptGuard() {
+  if (--gGuards == 0) {
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
+  }
+}
+
+bool InterruptGuard::interrupted() { return gSignal != 0; }
+int InterruptGuard::signal() { return gSignal; }
+
+Progress::Progress(std::string label, long long total, bool show)
+    : label_(std::move(label)), total_(total), start_(nowSeconds()), enabled_(show && isatty(STDERR_FILENO)) {}
 
 void Progress::update(long long done) {
+  if (!enabled_) return;
   const double t = nowSeconds();
   const double el = t - start_;
   if (el < 1.0 || t - lastDraw_ < 0.2) return;

@@ -8,6 +8,7 @@
 
 #include <fstream>
 #include <functional>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -25,17 +26,20 @@ struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// The solver options shared by `run`, `render` and `bench`.
+// The solver options shared by `run`, `render` and `bench`: one per row of the settings table
+// (physics/settings.h), each parsed and range-checked by it; flags have a --no- form.
 struct SolverOptions {
-  std::string algo, preset;
-  std::optional<double> dt, omega, tolerance, kappa, tau, slop;
-  std::optional<int> substeps, iterations;
-  bool warmStart = false, noWarmStart = false, blockSolve = false, noBlockSolve = false;
-  bool splitImpulse = false, noSplitImpulse = false;
+  std::map<std::string, std::optional<std::string>> values;  // by setting key, as typed
+  std::map<std::string, std::pair<bool, bool>> flags;         // by setting key: --x, --no-x
 
   void add(CLI::App& cmd);
+  // Throws UsageError naming the option ("--kappa: expected a number in (0, 10], got \"nan\"").
   SolverOverrides overrides() const;
 };
+
+// A number option's check: finite and within [lo, hi] ("nan", "inf" and "1e999" are refused,
+// which CLI::Range lets through).
+CLI::Validator finiteIn(double lo, double hi);
 
 // Settings for a scene: the scene's solver block, overridden by the command line, resolved with
 // the algorithm's defaults. Throws UsageError.
@@ -45,10 +49,17 @@ SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& comman
 std::string describe(const SolverSettings& s);
 
 // Loads a scene, turning its errors into UsageError.
-Scene load(const std::string& path);
+Scene load(const std::string& path, const SceneLimits& lim = {});
+// --max-bodies N, the cap on a scene's bodies and joints.
+void addMaxBodies(CLI::App& cmd, SceneLimits& lim);
 
 // Where assets live: $SUBSTEP_ASSETS, else the source tree's assets/.
 std::string assetsDir();
+
+// Temporary outputs are named <output>.part<pid>. Removes those next to `output` whose process
+// is gone (a run killed with SIGKILL, or a crash), so they do not pile up.
+void removeStaleTemporaries(const std::string& output);
+std::string temporaryName(const std::string& output);  // <output>.part<pid of this process>
 
 // A file written under a temporary name and renamed over the target when committed; removed
 // if never committed. Fails early with a clear UsageError if the folder is not writable.
@@ -66,13 +77,28 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+// Whether two paths name the same file (existing or not): "x.csv" and "./x.csv" do.
+bool samePath(const std::string& a, const std::string& b);
+
 // Makes sure the folder of `path` exists and a file can be created there; throws UsageError.
 void checkWritable(const std::string& path, const std::string& what);
 
-// Progress on stderr for long jobs: frames done, rate, time left. Silent for the first second.
+// SIGINT and SIGTERM set a flag while one of these lives, so that long jobs stop between steps
+// or frames and remove their temporary outputs (their destructors) before exiting with 130.
+class InterruptGuard {
+ public:
+  InterruptGuard();
+  ~InterruptGuard();
+  static bool interrupted();
+  static int signal();  // the signal received, 0 if none
+};
+constexpr int kExitInterrupted = 130;
+
+// Progress on stderr for long jobs: frames done, rate, time left. Silent for the first second,
+// when `show` is false (-q) and when stderr is not a terminal (a log file gets no bar).
 class Progress {
  public:
-  Progress(std::string label, long long total);
+  Progress(std::string label, long long total, bool show = true);
   void update(long long done);
   void finish();
 
@@ -82,6 +108,7 @@ class Progress {
   double start_;
   double lastDraw_ = -1;
   bool shown_ = false;
+  bool enabled_ = true;
 };
 
 double nowSeconds();

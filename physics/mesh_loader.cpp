@@ -1,5 +1,6 @@
 #include "physics/mesh_loader.h"
 
+#include "physics/limits.h"
 #include "physics/scene_file.h"
 
 #include <assimp/Importer.hpp>
@@ -12,6 +13,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <map>
 
 namespace substep {
 
@@ -41,14 +43,9 @@ void addNode(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent
 Mesh loadMesh(const std::string& path, double scale) {
   if (!(scale > 0) || !std::isfinite(scale)) throw SceneError(path, "", "scale must be > 0, got " + std::to_string(scale));
 
-  // Check readability ourselves: assimp's message for a missing file does not give the reason.
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw SceneError(path, "", std::string("cannot open: ") + std::strerror(EISDIR));
-  if (FILE* f = std::fopen(path.c_str(), "rb")) {
-    std::fclose(f);
-  } else {
-    throw SceneError(path, "", std::string("cannot open: ") + std::strerror(errno));
-  }
+  // Check readability ourselves: assimp's message for a missing file does not give the reason,
+  // and it would block on a FIFO and read /dev/zero until memory runs out.
+  if (const std::string why = checkInputFile(path, limits::kMaxMeshBytes); !why.empty()) throw SceneError(path, "", why);
 
   Assimp::Importer importer;
   // Drop normals, UVs and colours so JoinIdenticalVertices welds by position alone: a convex hull
@@ -67,9 +64,54 @@ Mesh loadMesh(const std::string& path, double scale) {
   mesh.file = path;
   addNode(*scene, *scene->mRootNode, aiMatrix4x4(), mesh, scale);
   if (mesh.triangles.empty()) throw SceneError(path, "", "the file holds no triangles");
+  if (mesh.triangles.size() > limits::kMaxMeshTriangles)
+    throw SceneError(path, "", "the file holds " + std::to_string(mesh.triangles.size()) + " triangles; expected at most " +
+                                   std::to_string(limits::kMaxMeshTriangles));
   for (const Vec3& v : mesh.vertices)
     if (!allFinite(v)) throw SceneError(path, "", "the file has a vertex with a non-finite coordinate");
+  // Vertices no triangle uses (a point cloud's leftovers) would be supporting points of nothing.
+  std::vector<int> used(mesh.vertices.size(), -1);
+  std::vector<Vec3> kept;
+  for (auto& t : mesh.triangles)
+    for (int& i : t) {
+      if (used[static_cast<size_t>(i)] < 0) {
+        used[static_cast<size_t>(i)] = static_cast<int>(kept.size());
+        kept.push_back(mesh.vertices[static_cast<size_t>(i)]);
+      }
+      i = used[static_cast<size_t>(i)];
+    }
+  mesh.vertices.swap(kept);
   return mesh;
+}
+
+std::string closedSurfaceProblem(const Mesh& m) {
+  // Every edge of a closed surface borders exactly two triangles.
+  std::map<std::pair<int, int>, int> edges;
+  for (const auto& t : m.triangles)
+    for (int k = 0; k < 3; ++k) {
+      int a = t[static_cast<size_t>(k)], b = t[static_cast<size_t>((k + 1) % 3)];
+      if (a == b) return "it has a degenerate triangle (two corners at one vertex)";
+      if (a > b) std::swap(a, b);
+      ++edges[{a, b}];
+    }
+  long long open = 0, crowded = 0;
+  std::pair<int, int> first{-1, -1};
+  for (const auto& [e, count] : edges) {
+    if (count == 2) continue;
+    (count < 2 ? open : crowded) += 1;
+    if (first.first < 0) first = e;
+  }
+  if (open + crowded == 0) return "";
+  std::string why = "it is not a closed surface: ";
+  if (open) why += std::to_string(open) + " edges border one triangle only";
+  if (open && crowded) why += " and ";
+  if (crowded) why += std::to_string(crowded) + " edges border three or more";
+  auto at = [&](int i) {
+    const Vec3& v = m.vertices[static_cast<size_t>(i)];
+    return "(" + numberText(v.x()) + ", " + numberText(v.y()) + ", " + numberText(v.z()) + ")";
+  };
+  return why + " (the first from " + at(first.first) + " to " + at(first.second) +
+         "); a convex shape needs a closed hull, e.g. from your modeller's convex-hull tool";
 }
 
 }  // namespace substep

@@ -10,6 +10,10 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -50,7 +54,25 @@ using json = nlohmann::json;
 std::string join(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
 std::string item(const std::string& path, size_t i) { return path + "[" + std::to_string(i) + "]"; }
 
-std::string inQuotes(const std::string& s) { return "\"" + s + "\""; }
+// A name or value as a message quotes it: cut short, control characters escaped.
+std::string inQuotes(const std::string& s) {
+  std::string q = "\"";
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (i == limits::kMaxMessageValue) {
+      q += "...";
+      break;
+    }
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (c < 0x20 || c == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      q += buf;
+    } else {
+      q += s[i];
+    }
+  }
+  return q + "\"";
+}
 
 std::string listOf(const std::vector<std::string>& v) {
   std::string s;
@@ -60,29 +82,18 @@ std::string listOf(const std::vector<std::string>& v) {
 
 // What was found, for "got ...": the value for scalars, the type for containers.
 std::string shown(const json& v) {
-  if (v.is_number() || v.is_boolean() || v.is_null()) return v.dump();
-  if (v.is_string()) {
-    const std::string s = v.dump();
-    return s.size() > 40 ? s.substr(0, 37) + "...\"" : s;
-  }
+  if (v.is_number()) return numberText(v.get<double>());
+  if (v.is_boolean() || v.is_null()) return v.dump();
+  if (v.is_string()) return inQuotes(v.get<std::string>());
   return v.is_array() ? "an array of " + std::to_string(v.size()) : "an object";
 }
 
-// A condition on a number, with the words that describe it in messages.
-struct Cond {
-  const char* text;  // "> 0"
-  bool (*ok)(double);
-};
-const Cond kAny{"", [](double) { return true; }};
-const Cond kPositive{"> 0", [](double x) { return x > 0; }};
-const Cond kNonNegative{">= 0", [](double x) { return x >= 0; }};
-const Cond kUnit{"in [0, 1]", [](double x) { return x >= 0 && x <= 1; }};
-const Cond kDt{"in (0, 1]", [](double x) { return x > 0 && x <= 1; }};
-const Cond kOmega{"in (0, 2)", [](double x) { return x > 0 && x < 2; }};
-const Cond kPitch{"in [-90, 90]", [](double x) { return x >= -90 && x <= 90; }};
-// Integers beyond this are typing errors, not requests (a generator of 1e9 bodies would just run out of memory).
-constexpr int kMaxInt = 1000000;
-const Cond kFov{"in (0, 180)", [](double x) { return x > 0 && x < 180; }};
+// Ranges of numbers that are not physical quantities (those are in physics/limits.h).
+constexpr Range kPitch{-90, 90};                      // camera [degrees]
+constexpr Range kFov{0, 180, true, true};             // camera [degrees]
+constexpr Range kQuatComponent{-1e6, 1e6};            // normalised after reading
+constexpr Range kDirection{-1e6, 1e6};                // normalised after reading
+constexpr Range kGroup{0, 1e6};
 
 class Reader;
 
@@ -106,9 +117,9 @@ class Obj {
     return j_.at(k);
   }
 
-  double number(const std::string& k, const Cond& c) const { return toNumber(need(k), at(k), c); }
-  double number(const std::string& k, const Cond& c, double def) const { return has(k) ? number(k, c) : def; }
-  int integer(const std::string& k, int min, int max = kMaxInt) const { return toInt(need(k), at(k), min, max); }
+  double number(const std::string& k, const Range& c) const { return toNumber(need(k), at(k), c); }
+  double number(const std::string& k, const Range& c, double def) const { return has(k) ? number(k, c) : def; }
+  int integer(const std::string& k, int min, int max) const { return toInt(need(k), at(k), min, max); }
   int integer(const std::string& k, int min, int max, int def) const { return has(k) ? integer(k, min, max) : def; }
   bool boolean(const std::string& k, bool def) const {
     if (!has(k)) return def;
@@ -118,11 +129,11 @@ class Obj {
   }
   std::string string(const std::string& k) const { return toString(need(k), at(k)); }
   std::string string(const std::string& k, const std::string& def) const { return has(k) ? string(k) : def; }
-  Vec3 vec3(const std::string& k) const { return toVec3(need(k), at(k)); }
-  Vec3 vec3(const std::string& k, const Vec3& def) const { return has(k) ? vec3(k) : def; }
+  Vec3 vec3(const std::string& k, const Range& c) const { return toVec3(need(k), at(k), c); }
+  Vec3 vec3(const std::string& k, const Range& c, const Vec3& def) const { return has(k) ? vec3(k, c) : def; }
   // A direction: non-zero, returned normalised.
   Vec3 unit(const std::string& k) const {
-    const Vec3 v = vec3(k);
+    const Vec3 v = vec3(k, kDirection);
     if (!(v.norm() > 1e-9)) fail(at(k), "expected a non-zero vector, got " + shown(j_.at(k)));
     return v.normalized();
   }
@@ -130,31 +141,27 @@ class Obj {
 
   // Typed conversions of any value (array elements too).
   static std::string typeName(const json& v) { return v.is_number() ? "number" : v.type_name(); }
-  double toNumber(const json& v, const std::string& path, const Cond& c) const {
-    const std::string expected = std::string("a number") + (c.text[0] ? " " : "") + c.text;
-    if (!v.is_number()) fail(path, "expected " + expected + ", got " + typeName(v));
+  double toNumber(const json& v, const std::string& path, const Range& c) const {
+    if (!v.is_number()) fail(path, "expected " + c.expected() + ", got " + typeName(v));
     const double x = v.get<double>();
     if (!std::isfinite(x)) fail(path, "expected a finite number, got " + v.dump());
-    if (!c.ok(x)) fail(path, "expected " + expected + ", got " + shown(v));
+    if (!c.contains(x)) fail(path, "expected " + c.expected() + ", got " + shown(v));
     return x;
   }
   int toInt(const json& v, const std::string& path, int min, int max) const {
-    const std::string range = max == kMaxInt ? ">= " + std::to_string(min)
-                                             : "in [" + std::to_string(min) + ", " + std::to_string(max) + "]";
-    const std::string expected = "an integer " + range;
-    if (!v.is_number()) fail(path, "expected " + expected + ", got " + typeName(v));
+    const Range r{static_cast<double>(min), static_cast<double>(max)};
+    if (!v.is_number()) fail(path, "expected " + r.expected(true) + ", got " + typeName(v));
     const double x = v.get<double>();
-    if (!(x == std::floor(x)) || x < min || x > max) fail(path, "expected " + expected + ", got " + shown(v));
+    if (!(x == std::floor(x)) || !r.contains(x)) fail(path, "expected " + r.expected(true) + ", got " + shown(v));
     return static_cast<int>(x);
   }
   std::string toString(const json& v, const std::string& path) const {
     if (!v.is_string()) fail(path, "expected a string, got " + typeName(v));
     return v.get<std::string>();
   }
-  Vec3 toVec3(const json& v, const std::string& path) const {
+  Vec3 toVec3(const json& v, const std::string& path, const Range& c) const {
     if (!v.is_array() || v.size() != 3) fail(path, "expected an array of 3 numbers [x, y, z], got " + shown(v));
-    return Vec3(toNumber(v[0], item(path, 0), kAny), toNumber(v[1], item(path, 1), kAny),
-                toNumber(v[2], item(path, 2), kAny));
+    return Vec3(toNumber(v[0], item(path, 0), c), toNumber(v[1], item(path, 1), c), toNumber(v[2], item(path, 2), c));
   }
 
  private:
@@ -170,7 +177,8 @@ struct LoadedMesh {
 
 class Reader {
  public:
-  Reader(std::string file, std::string baseDir) : file_(std::move(file)), baseDir_(std::move(baseDir)) {}
+  Reader(std::string file, std::string baseDir, const SceneLimits& lim)
+      : file_(std::move(file)), baseDir_(std::move(baseDir)), maxBodies_(lim.maxBodies) {}
 
   [[noreturn]] void fail(const std::string& path, const std::string& message) const {
     throw SceneError(file_, path.empty() ? "(top level)" : path, message);
@@ -190,8 +198,10 @@ class Reader {
   LoadedMesh mesh(const Obj& o, bool convex, double scale);
   int bodyByName(const Obj& o, const json& v, const std::string& path, const Scene& scene) const;
   void claimName(const std::string& name, const std::string& path, const std::string& where);
+  void checkName(const std::string& name, const std::string& path) const;
 
   std::string file_, baseDir_;
+  long long maxBodies_;
   std::unordered_map<std::string, int> names_;   // body name -> index
   std::vector<std::string> definedAt_;           // body index -> JSON path that made it
   std::map<std::pair<std::string, double>, LoadedMesh> convexCache_, meshCache_;
@@ -228,12 +238,15 @@ Scene Reader::read(const json& root) {
   scene.file = file_;
   scene.model.name = std::filesystem::path(file_).stem().string();
   scene.description = top.string("description", "");
-  scene.model.gravity = top.vec3("gravity", Vec3(0, -9.81, 0));
+  scene.model.gravity = top.vec3("gravity", limits::kGravity, Vec3(0, -9.81, 0));
   if (top.has("solver")) readSolver(Obj(*this, top.need("solver"), "solver"), scene.solver);
 
   // Bodies, then generated bodies, then joints, which may name either.
   if (top.has("bodies")) {
     const json& a = arrayAt(top, "bodies");
+    if (a.size() > static_cast<size_t>(maxBodies_))
+      fail("bodies", "lists " + std::to_string(a.size()) + " bodies: more than the limit of " +
+                         std::to_string(maxBodies_) + " (raise it with --max-bodies N)");
     for (size_t i = 0; i < a.size(); ++i) readBody(Obj(*this, a[i], item("bodies", i)), scene);
   }
   if (top.has("generators")) {
@@ -243,6 +256,10 @@ Scene Reader::read(const json& root) {
   }
   if (top.has("joints")) {
     const json& a = arrayAt(top, "joints");
+    if (a.size() + scene.model.joints.size() > static_cast<size_t>(maxBodies_))
+      fail("joints", "makes " + std::to_string(a.size() + scene.model.joints.size()) +
+                         " joints: more than the limit of " + std::to_string(maxBodies_) +
+                         " (raise it with --max-bodies N)");
     for (size_t i = 0; i < a.size(); ++i) readJoint(Obj(*this, a[i], item("joints", i)), static_cast<int>(i), scene);
   }
   if (top.has("cameras")) {
@@ -263,29 +280,45 @@ Scene Reader::read(const json& root) {
 }
 
 void Reader::readSolver(const Obj& o, SolverOverrides& s) const {
-  o.allow({"algorithm", "dt", "substeps", "iterations", "omega", "tolerance", "kappa", "tau", "slop", "warm_start",
-           "block_solve", "split_impulse", "preset"});
-  if (o.has("algorithm")) {
-    const std::string a = o.string("algorithm");
-    s.algorithm = parseAlgorithm(a);
-    if (!s.algorithm) fail(o.at("algorithm"), "expected one of a1, a2, a3, a4, a5, got " + inQuotes(a));
+  std::vector<std::string> keys;
+  for (const SettingSpec& spec : settingTable()) keys.push_back(spec.key);
+  o.allow(keys);
+  for (const SettingSpec& spec : settingTable()) {
+    if (!o.has(spec.key)) continue;
+    const json& v = o.need(spec.key);
+    const std::string path = o.at(spec.key);
+    try {
+      switch (spec.kind) {
+        case SettingKind::Integer:
+        case SettingKind::Real:
+          if (!v.is_number()) fail(path, "expected " + spec.expected() + ", got " + Obj::typeName(v));
+          spec.setNumber(s, v.get<double>());
+          break;
+        case SettingKind::Flag:
+          if (!v.is_boolean()) fail(path, "expected true or false, got " + Obj::typeName(v));
+          spec.setFlag(s, v.get<bool>());
+          break;
+        case SettingKind::Choice: spec.setText(s, o.toString(v, path)); break;
+      }
+    } catch (const std::invalid_argument& e) {
+      fail(path, e.what());
+    }
   }
-  if (o.has("dt")) s.dt = o.number("dt", kDt);
-  if (o.has("substeps")) s.substeps = o.integer("substeps", 1);
-  if (o.has("iterations")) s.iterations = o.integer("iterations", 1);
-  if (o.has("omega")) s.omega = o.number("omega", kOmega);
-  if (o.has("tolerance")) s.tolerance = o.number("tolerance", kNonNegative);
-  if (o.has("kappa")) s.kappa = o.number("kappa", kPositive);
-  if (o.has("tau")) s.tau = o.number("tau", kNonNegative);
-  if (o.has("slop")) s.slop = o.number("slop", kNonNegative);
-  if (o.has("warm_start")) s.warmStart = o.boolean("warm_start", false);
-  if (o.has("block_solve")) s.blockSolve = o.boolean("block_solve", false);
-  if (o.has("split_impulse")) s.splitImpulse = o.boolean("split_impulse", false);
-  if (o.has("preset")) s.preset = o.string("preset");
+}
+
+// Names end up in CSV columns, messages and the HUD: printable, and not a paragraph.
+void Reader::checkName(const std::string& name, const std::string& path) const {
+  if (name.empty()) fail(path, "expected a non-empty name");
+  if (name.size() > limits::kMaxNameLength)
+    fail(path, "a name of " + std::to_string(name.size()) + " bytes; expected at most " +
+                   std::to_string(limits::kMaxNameLength));
+  for (const char c : name)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+      fail(path, "the name " + inQuotes(name) + " holds a control character; expected printable text");
 }
 
 void Reader::claimName(const std::string& name, const std::string& path, const std::string& where) {
-  if (name.empty()) fail(path, "expected a non-empty name");
+  checkName(name, path);
   const auto it = names_.find(name);
   if (it != names_.end())
     fail(path, "duplicate body name " + inQuotes(name) + " (already used by " + definedAt_[it->second] + ")");
@@ -300,17 +333,21 @@ void Reader::readMaterial(const Obj& o, BodyMaterial& m, bool isStatic) const {
       if (o.has(k)) fail(o.at(k), std::string("static bodies take no mass (remove \"") + k + "\" or make it dynamic)");
   }
   if (o.has("mass") && o.has("density")) fail(o.at("density"), "give either \"mass\" or \"density\", not both");
-  if (o.has("mass")) m.mass = o.number("mass", kPositive);
-  m.density = o.number("density", kPositive, 1000);
-  m.friction = o.number("friction", kNonNegative, 0.5);
-  m.restitution = o.number("restitution", kUnit, 0);
-  m.group = o.integer("group", 0, kMaxInt, m.group);
+  if (o.has("mass")) m.mass = o.number("mass", limits::kMass);
+  m.density = o.number("density", limits::kDensity, 1000);
+  m.friction = o.number("friction", limits::kFriction, 0.5);
+  m.restitution = o.number("restitution", limits::kRestitution, 0);
+  m.group = o.integer("group", 0, static_cast<int>(kGroup.hi), m.group);
 }
 
 LoadedMesh Reader::mesh(const Obj& o, bool convex, double scale) {
   namespace fs = std::filesystem;
   const std::string given = o.string("file");
   if (given.empty()) fail(o.at("file"), "expected a mesh file name, got \"\"");
+  // Before any path arithmetic: "a.obj\0b.obj" would otherwise open a.obj, or lose its NUL in
+  // normalisation and open another file.
+  if (given.find('\0') != std::string::npos)
+    fail(o.at("file"), "the file name " + inQuotes(given) + " holds a NUL character");
   fs::path p(given);
   if (p.is_relative() && !baseDir_.empty()) p = fs::path(baseDir_) / p;
   const std::string path = p.lexically_normal().string();
@@ -325,8 +362,18 @@ LoadedMesh Reader::mesh(const Obj& o, bool convex, double scale) {
   } catch (const SceneError& e) {
     fail(o.at("file"), "cannot load mesh " + inQuotes(path) + ": " + e.message);
   }
+  // The mesh's size after scaling, as any shape's (limits.h).
+  Vec3 lo = m.vertices[0], hi = m.vertices[0];
+  for (const Vec3& v : m.vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  const double half = 0.5 * (hi - lo).maxCoeff();
+  if (!limits::kSize.contains(half))
+    fail(o.at(o.has("scale") ? "scale" : "file"), "mesh " + inQuotes(path) + " is " + numberText(2 * half) +
+                                                      " m across after scaling; expected a half size " +
+                                                      limits::kSize.text() + " m");
   LoadedMesh out;
   if (convex) {
+    if (const std::string why = closedSurfaceProblem(m); !why.empty())
+      fail(o.at("file"), "convex mesh " + inQuotes(path) + ": " + why);
     const double volume = meshVolume(m);
     if (!(volume > 0))
       fail(o.at("file"), "convex mesh " + inQuotes(path) + " has volume " + std::to_string(volume) +
@@ -344,29 +391,26 @@ Shape Reader::readShape(const Obj& o, bool isStatic, Pose* principal) {
   if (type == "sphere") {
     o.allow({"type", "radius"});
     s.type = ShapeType::Sphere;
-    s.radius = o.number("radius", kPositive);
+    s.radius = o.number("radius", limits::kSize);
   } else if (type == "box") {
     o.allow({"type", "half_extents"});
     s.type = ShapeType::Box;
-    s.halfExtents = o.vec3("half_extents");
-    for (int i = 0; i < 3; ++i)
-      if (!(s.halfExtents[i] > 0))
-        fail(item(o.at("half_extents"), i), "expected a number > 0, got " + o.need("half_extents")[i].dump());
+    s.halfExtents = o.vec3("half_extents", limits::kSize);
   } else if (type == "capsule" || type == "cylinder") {
     o.allow({"type", "radius", "half_height"});
     s.type = type == "capsule" ? ShapeType::Capsule : ShapeType::Cylinder;
-    s.radius = o.number("radius", kPositive);
-    s.halfHeight = o.number("half_height", kPositive);
+    s.radius = o.number("radius", limits::kSize);
+    s.halfHeight = o.number("half_height", limits::kSize);
   } else if (type == "plane") {
     o.allow({"type", "normal", "offset"});
     s.type = ShapeType::Plane;
     s.normal = o.unit("normal", Vec3::UnitY());
-    s.offset = o.number("offset", kAny, 0);
+    s.offset = o.number("offset", limits::kCoordinate, 0);
   } else {  // convex, mesh
     o.allow({"type", "file", "scale"});
     const bool convex = type == "convex";
     s.type = convex ? ShapeType::ConvexMesh : ShapeType::TriangleMesh;
-    s.scale = o.number("scale", kPositive, 1);
+    s.scale = o.number("scale", limits::kScale, 1);
     const LoadedMesh m = mesh(o, convex, s.scale);
     s.mesh = m.mesh;
     if (principal) *principal = m.principal;
@@ -397,7 +441,7 @@ void Reader::readBody(const Obj& o, Scene& scene) {
   b.shape = readShape(Obj(*this, o.need("shape"), o.at("shape")), b.isStatic, &principal);
 
   Pose file;  // the pose the scene gives: of the shape's (mesh file's) frame
-  file.p = o.vec3("position", Vec3::Zero());
+  file.p = o.vec3("position", limits::kCoordinate, Vec3::Zero());
   if (o.has("orientation")) file.q = quaternionAt(o, "orientation");
 
   try {
@@ -408,12 +452,17 @@ void Reader::readBody(const Obj& o, Scene& scene) {
   } catch (const std::invalid_argument& e) {
     fail(o.at("shape"), e.what());
   }
+  if (!b.isStatic && !limits::kMass.contains(b.mass))
+    fail(o.has("density") ? o.at("density") : o.at("shape"),
+         "this shape at this density weighs " + numberText(b.mass) + " kg; expected a body mass " +
+             limits::kMass.text() + " kg (give \"mass\" or another \"density\")");
 
   BodyState s;
   s.x = file.apply(principal.p);
   s.q = (file.q * principal.q).normalized();
-  s.v = o.vec3("velocity", Vec3::Zero());  // of the centre of mass
-  s.w = s.q.conjugate() * o.vec3("angular_velocity", Vec3::Zero());  // files give it in the world frame
+  s.v = o.vec3("velocity", limits::kSpeed, Vec3::Zero());  // of the centre of mass
+  // Files give it in the world frame.
+  s.w = s.q.conjugate() * o.vec3("angular_velocity", limits::kAngularSpeed, Vec3::Zero());
   addBody(scene, b, s);
 }
 
@@ -422,8 +471,8 @@ Quat Reader::quaternionAt(const Obj& o, const std::string& key) const {
   const json& v = o.need(key);
   const std::string path = o.at(key);
   if (!v.is_array() || v.size() != 4) fail(path, "expected a quaternion [w, x, y, z], got " + shown(v));
-  const Quat q(o.toNumber(v[0], item(path, 0), kAny), o.toNumber(v[1], item(path, 1), kAny),
-               o.toNumber(v[2], item(path, 2), kAny), o.toNumber(v[3], item(path, 3), kAny));
+  const Quat q(o.toNumber(v[0], item(path, 0), kQuatComponent), o.toNumber(v[1], item(path, 1), kQuatComponent),
+               o.toNumber(v[2], item(path, 2), kQuatComponent), o.toNumber(v[3], item(path, 3), kQuatComponent));
   if (!(q.norm() >= 1e-9)) fail(path, "expected a non-zero quaternion [w, x, y, z], got " + v.dump());
   return q.normalized();
 }
@@ -442,47 +491,52 @@ void Reader::readGenerator(const Obj& o, int index, Scene& scene) {
   m.group = index;
   readMaterial(o, m, false);
   const std::string name = o.string("name", type + std::to_string(index));
-  if (name.empty()) fail(o.at("name"), "expected a non-empty name");
-
-  auto halfExtents = [&] {
-    const Vec3 e = o.vec3("half_extents");
-    for (int i = 0; i < 3; ++i)
-      if (!(e[i] > 0)) fail(item(o.at("half_extents"), i), "expected a number > 0, got " + o.need("half_extents")[i].dump());
-    return e;
+  checkName(name, o.has("name") ? o.at("name") : o.path());
+  auto halfExtents = [&] { return o.vec3("half_extents", limits::kSize); };
+  // Bodies this generator would add, checked against the cap before any is made.
+  auto room = [&](const std::string& key, long long adding, const std::string& what) {
+    const long long total = static_cast<long long>(scene.model.bodies.size()) + adding;
+    if (total > maxBodies_)
+      fail(o.at(key), what + " make " + std::to_string(adding) + " bodies, " + std::to_string(total) +
+                          " with those before: more than the limit of " + std::to_string(maxBodies_) +
+                          " bodies (raise it with --max-bodies N)");
   };
 
   const size_t first = scene.model.bodies.size();
   try {
     if (type == "stack") {
       StackParams p;
-      p.count = o.integer("count", 1, 100000);
+      p.count = o.integer("count", 1, limits::kMaxBodiesCeiling);
+      room("count", p.count, std::to_string(p.count) + " boxes");
       p.halfExtents = halfExtents();
-      p.position = o.vec3("position", Vec3::Zero());
-      p.gap = o.number("gap", kNonNegative, 0);
+      p.position = o.vec3("position", limits::kCoordinate, Vec3::Zero());
+      p.gap = o.number("gap", limits::kLength, 0);
       p.name = name;
       p.material = m;
       addStack(scene, p);
     } else if (type == "pyramid") {
       PyramidParams p;
-      p.levels = o.integer("levels", 1, 400);  // 80200 boxes
+      p.levels = o.integer("levels", 1, 1500);  // 1.1 million boxes
+      room("levels", static_cast<long long>(p.levels) * (p.levels + 1) / 2, std::to_string(p.levels) + " levels");
       p.halfExtents = halfExtents();
-      p.position = o.vec3("position", Vec3::Zero());
-      p.gap = o.number("gap", kNonNegative, 0.01);
+      p.position = o.vec3("position", limits::kCoordinate, Vec3::Zero());
+      p.gap = o.number("gap", limits::kLength, 0.01);
       p.name = name;
       p.material = m;
       addPyramid(scene, p);
     } else if (type == "ragdoll") {
       if (o.has("density")) fail(o.at("density"), "a ragdoll takes \"mass\" (of the whole ragdoll), not a density");
       RagdollParams p;
-      p.count = o.integer("count", 1, 10000, 1);
-      p.position = o.vec3("position", Vec3::Zero());
+      p.count = o.integer("count", 1, limits::kMaxBodiesCeiling, 1);
+      room(o.has("count") ? "count" : "type", 15LL * p.count, std::to_string(p.count) + " ragdolls of 15 bodies");
+      p.position = o.vec3("position", limits::kCoordinate, Vec3::Zero());
       if (o.has("orientation")) p.orientation = quaternionAt(o, "orientation");
-      p.columns = o.integer("columns", 1, 10000, 1);
-      p.offset = o.vec3("offset", Vec3(0, 1.2, 0));
-      p.spread = o.vec3("spread", Vec3(0.8, 0, 0));
-      p.yaw = o.number("yaw", kAny, 0);
-      p.velocity = o.vec3("velocity", Vec3::Zero());
-      p.scale = o.number("scale", kPositive, 1);
+      p.columns = o.integer("columns", 1, limits::kMaxBodiesCeiling, 1);
+      p.offset = o.vec3("offset", limits::kCoordinate, Vec3(0, 1.2, 0));
+      p.spread = o.vec3("spread", limits::kCoordinate, Vec3(0.8, 0, 0));
+      p.yaw = o.number("yaw", limits::kJointAngle, 0);
+      p.velocity = o.vec3("velocity", limits::kSpeed, Vec3::Zero());
+      p.scale = o.number("scale", limits::kScale, 1);
       if (m.mass) p.mass = *m.mass;
       p.name = name;
       p.material = m;
@@ -490,14 +544,15 @@ void Reader::readGenerator(const Obj& o, int index, Scene& scene) {
       addRagdoll(scene, p);
     } else {
       ChainParams p;
-      p.count = o.integer("count", 1, 100000);
+      p.count = o.integer("count", 1, limits::kMaxBodiesCeiling);
+      room("count", p.count + 1LL, std::to_string(p.count) + " links and their anchor");
       const Obj link(*this, o.need("link"), o.at("link"));
       p.link = readShape(link, false, nullptr);
       if (p.link.type != ShapeType::Capsule && p.link.type != ShapeType::Box && p.link.type != ShapeType::Sphere)
         fail(link.at("type"), "expected a capsule, box or sphere link, got " + inQuotes(link.string("type")));
-      p.anchor = o.vec3("anchor");
+      p.anchor = o.vec3("anchor", limits::kCoordinate);
       p.direction = o.unit("direction", Vec3::UnitX());
-      p.spacing = o.number("spacing", kPositive);
+      p.spacing = o.number("spacing", limits::kSize);
       const std::string joint = o.string("joint", "ball");
       if (joint == "ball")
         p.joint = JointType::Ball;
@@ -514,8 +569,23 @@ void Reader::readGenerator(const Obj& o, int index, Scene& scene) {
   }
 
   const std::string namePath = o.has("name") ? o.at("name") : o.path();
-  for (size_t i = first; i < scene.model.bodies.size(); ++i)
-    claimName(scene.model.bodies[i].name, namePath, o.path() + " (" + scene.model.bodies[i].name + ")");
+  for (size_t i = first; i < scene.model.bodies.size(); ++i) {
+    const Body& b = scene.model.bodies[i];
+    claimName(b.name, namePath, o.path() + " (" + b.name + ")");
+    // Each parameter was in range; what they make together must be too (a stack of a thousand
+    // 100 m boxes reaches beyond the coordinate range).
+    const Vec3& x = scene.initial.bodies[i].x;
+    for (int k = 0; k < 3; ++k)
+      if (!limits::kCoordinate.contains(x[k]))
+        fail(o.path(), "generated body " + inQuotes(b.name) + " lies at " + numberText(x[k]) + " m on axis " +
+                           "xyz"[k] + "; expected every coordinate " + limits::kCoordinate.text() + " m");
+    if (!b.isStatic && !limits::kMass.contains(b.mass))
+      fail(o.path(), "generated body " + inQuotes(b.name) + " weighs " + numberText(b.mass) + " kg; expected a mass " +
+                         limits::kMass.text() + " kg");
+  }
+  if (scene.model.joints.size() > static_cast<size_t>(maxBodies_))
+    fail(o.path(), "makes " + std::to_string(scene.model.joints.size()) + " joints: more than the limit of " +
+                       std::to_string(maxBodies_) + " (raise it with --max-bodies N)");
 }
 
 int Reader::bodyByName(const Obj& o, const json& v, const std::string& path, const Scene& scene) const {
@@ -563,35 +633,36 @@ void Reader::readJoint(const Obj& o, int index, Scene& scene) const {
     const json& v = o.need("anchors");
     const std::string ap = o.at("anchors");
     if (!v.is_array() || v.size() != 2) fail(ap, "expected two points [[x, y, z], [x, y, z]], got " + shown(v));
-    anchorA = o.toVec3(v[0], item(ap, 0));
-    anchorB = o.toVec3(v[1], item(ap, 1));
+    anchorA = o.toVec3(v[0], item(ap, 0), limits::kCoordinate);
+    anchorB = o.toVec3(v[1], item(ap, 1), limits::kCoordinate);
   } else {
-    anchorA = anchorB = o.vec3("anchor");
+    anchorA = anchorB = o.vec3("anchor", limits::kCoordinate);
   }
   const bool hasAxis = type == JointType::Hinge || type == JointType::ConeTwist || type == JointType::Motor;
   const Vec3 axis = hasAxis ? o.unit("axis") : Vec3::UnitX();  // the X axis still records the relative rotation
 
   Joint j = makeJoint(scene, type, a, b, anchorA, anchorB, axis);
   j.name = o.string("name", "joint" + std::to_string(index));
+  if (o.has("name")) checkName(j.name, o.at("name"));
   j.collide = o.boolean("collide", false);
   if (o.has("limits")) {
     const json& v = o.need("limits");
     const std::string lp = o.at("limits");
     if (!v.is_array() || v.size() != 2) fail(lp, "expected [lower, upper] in radians, got " + shown(v));
-    j.lower = o.toNumber(v[0], item(lp, 0), kAny);
-    j.upper = o.toNumber(v[1], item(lp, 1), kAny);
+    j.lower = o.toNumber(v[0], item(lp, 0), limits::kJointAngle);
+    j.upper = o.toNumber(v[1], item(lp, 1), limits::kJointAngle);
     if (j.lower > j.upper) fail(lp, "expected lower <= upper, got " + v.dump());
     j.hasLimits = true;
   }
-  if (type == JointType::ConeTwist) j.swing = o.number("swing", kPositive);
+  if (type == JointType::ConeTwist) j.swing = o.number("swing", limits::kSwing);
   if (type == JointType::Motor || o.has("motor")) {
     const Obj mo(*this, o.need("motor"), o.at("motor"));
     mo.allow({"speed", "max_torque"});
     j.hasMotor = true;
-    j.motorSpeed = mo.number("speed", kAny);
-    j.motorMaxTorque = mo.number("max_torque", kNonNegative, 0);
+    j.motorSpeed = mo.number("speed", limits::kMotorSpeed);
+    j.motorMaxTorque = mo.number("max_torque", limits::kTorque, 0);
   }
-  if (type == JointType::Spring) j.restLength = o.number("rest_length", kNonNegative, j.restLength);
+  if (type == JointType::Spring) j.restLength = o.number("rest_length", limits::kLength, j.restLength);
   scene.model.joints.push_back(j);
 }
 
@@ -599,11 +670,11 @@ CameraPreset Reader::readCamera(const Obj& o, const Scene& scene) const {
   o.allow({"name", "target", "yaw", "pitch", "distance", "fov", "follow"});
   CameraPreset c;
   c.name = o.string("name");
-  if (c.name.empty()) fail(o.at("name"), "expected a non-empty name");
-  c.target = o.vec3("target", c.target);
-  c.yaw = o.number("yaw", kAny, c.yaw);
+  checkName(c.name, o.at("name"));
+  c.target = o.vec3("target", limits::kCoordinate, c.target);
+  c.yaw = o.number("yaw", limits::kDegrees, c.yaw);
   c.pitch = o.number("pitch", kPitch, c.pitch);
-  c.distance = o.number("distance", kPositive, c.distance);
+  c.distance = o.number("distance", limits::kDistance, c.distance);
   c.fovY = o.number("fov", kFov, c.fovY);
   if (o.has("follow")) {
     c.follow = o.string("follow");
@@ -612,37 +683,55 @@ CameraPreset Reader::readCamera(const Obj& o, const Scene& scene) const {
   return c;
 }
 
-// Duplicate keys: nlohmann keeps the last silently; we reject them like unknown keys. The parser
-// callback sees keys as they arrive, so it tracks the path itself.
-class DuplicateKeys {
+// A first pass over the text with nlohmann's SAX interface, before the DOM is built: it refuses
+// what the DOM would accept silently (duplicate keys: nlohmann keeps the last) or at a cost
+// (500 000 nested arrays), and it keeps the position of every syntax error, which the DOM parser's
+// exceptions for numbers out of range (1e999) do not carry. It tracks the path itself.
+class Checker {
  public:
-  explicit DuplicateKeys(const std::string& file) : file_(file) {}
+  using number_integer_t = json::number_integer_t;
+  using number_unsigned_t = json::number_unsigned_t;
+  using number_float_t = json::number_float_t;
+  using string_t = json::string_t;
+  using binary_t = json::binary_t;
 
-  bool operator()(int, json::parse_event_t ev, json& parsed) {
-    using E = json::parse_event_t;
-    switch (ev) {
-      case E::object_start: stack_.push_back({false, 0, {}, {}}); break;
-      case E::array_start: stack_.push_back({true, 0, {}, {}}); break;
-      case E::key: {
-        Frame& f = stack_.back();
-        f.key = parsed.get<std::string>();
-        if (!f.keys.insert(f.key).second) {
-          const std::string p = path();
-          throw SceneError(file_, p.empty() ? "(top level)" : p, "duplicate key " + inQuotes(f.key));
-        }
-        break;
-      }
-      case E::object_end:
-      case E::array_end:
-        stack_.pop_back();
-        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
-        break;
-      case E::value:
-        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
-        break;
+  explicit Checker(const std::string& file) : file_(file) {}
+
+  bool null() { return value(); }
+  bool boolean(bool) { return value(); }
+  bool number_integer(number_integer_t) { return value(); }
+  bool number_unsigned(number_unsigned_t) { return value(); }
+  bool number_float(number_float_t, const string_t&) { return value(); }
+  bool string(string_t&) { return value(); }
+  bool binary(binary_t&) { return value(); }
+  bool start_object(std::size_t) { return open(false); }
+  bool start_array(std::size_t) { return open(true); }
+  bool key(string_t& k) {
+    Frame& f = stack_.back();
+    f.key = k;
+    if (!f.keys.insert(k).second) {
+      const std::string p = path(stack_.size() - 1);
+      throw SceneError(file_, p.empty() ? "(top level)" : p, "duplicate key " + inQuotes(k));
     }
     return true;
   }
+  bool end_object() { return close(); }
+  bool end_array() { return close(); }
+  bool parse_error(std::size_t position, const std::string& token, const json::exception& e) {
+    position_ = position;
+    // nlohmann's "[json.exception.parse_error.101] parse error at line 1, column 2: " is dropped.
+    std::string what = e.what();
+    if (e.id == 406)  // out_of_range.406: a number beyond a double's range
+      what = "the number " + inQuotes(token) + " is beyond the range of a double (about 1.8e308); expected a finite number";
+    else if (const size_t k = what.find("parse error"); k != std::string::npos)
+      if (const size_t colon = what.find(": ", k); colon != std::string::npos) what = what.substr(colon + 2);
+    if (what.size() > 200) what = what.substr(0, 200) + "...";
+    message_ = "JSON syntax error: " + what;
+    return false;
+  }
+
+  size_t position() const { return position_; }
+  const std::string& message() const { return message_; }
 
  private:
   struct Frame {
@@ -651,59 +740,108 @@ class DuplicateKeys {
     std::string key;
     std::set<std::string> keys;
   };
-  // Path of the innermost container (the one whose key repeats).
-  std::string path() const {
+  bool value() {
+    if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
+    return true;
+  }
+  bool open(bool array) {
+    if (static_cast<int>(stack_.size()) >= limits::kMaxNesting)
+      throw SceneError(file_, path(stack_.size()), "arrays and objects nested more than " +
+                                                       std::to_string(limits::kMaxNesting) +
+                                                       " deep; a scene needs a handful of levels");
+    stack_.push_back({array, 0, {}, {}});
+    return true;
+  }
+  bool close() {
+    stack_.pop_back();
+    return value();
+  }
+  // Path of the value being read inside the first `depth` containers.
+  std::string path(size_t depth) const {
     std::string p;
-    for (size_t i = 0; i + 1 < stack_.size(); ++i)
+    for (size_t i = 0; i < depth && i < stack_.size(); ++i)
       p = stack_[i].array ? item(p, stack_[i].index) : join(p, stack_[i].key);
     return p;
   }
 
   const std::string& file_;
   std::vector<Frame> stack_;
+  size_t position_ = 0;
+  std::string message_;
 };
+
+// "line:column" of byte `pos` (nlohmann counts from 1 and gives the last byte read).
+std::string sourcePosition(const std::string& text, size_t pos) {
+  pos = std::min(pos > 0 ? pos - 1 : 0, text.size());
+  size_t line = 1, lineStart = 0;
+  for (size_t i = 0; i < pos; ++i)
+    if (text[i] == '\n') {
+      ++line;
+      lineStart = i + 1;
+    }
+  return std::to_string(line) + ":" + std::to_string(pos - lineStart + 1);
+}
 
 }  // namespace
 
-Scene parseScene(const std::string& text, const std::string& file, const std::string& baseDir) {
-  json root;
-  try {
-    root = json::parse(text, DuplicateKeys(file));
-  } catch (const json::parse_error& e) {
-    // nlohmann counts bytes from 1 and gives the last one read; turn it into line and column.
-    const size_t pos = std::min(e.byte > 0 ? e.byte - 1 : 0, text.size());
-    size_t line = 1, lineStart = 0;
-    for (size_t i = 0; i < pos; ++i)
-      if (text[i] == '\n') {
-        ++line;
-        lineStart = i + 1;
-      }
-    std::string what = e.what();
-    // Drop nlohmann's "[json.exception.parse_error.101] parse error at line 1, column 2: ".
-    if (const size_t k = what.find("parse error"); k != std::string::npos)
-      if (const size_t colon = what.find(": ", k); colon != std::string::npos) what = what.substr(colon + 2);
-    throw SceneError(file, std::to_string(line) + ":" + std::to_string(pos - lineStart + 1), "JSON syntax error: " + what);
-  }
-  return Reader(file, baseDir).read(root);
+Scene parseScene(const std::string& text, const std::string& file, const std::string& baseDir,
+                 const SceneLimits& lim) {
+  Checker checker(file);
+  if (!json::sax_parse(text, &checker)) throw SceneError(file, sourcePosition(text, checker.position()), checker.message());
+  return Reader(file, baseDir, lim).read(json::parse(text));
 }
 
-Scene loadScene(const std::string& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) throw SceneError(path, "", std::string("cannot open: ") + std::strerror(EISDIR));
-  FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) throw SceneError(path, "", std::string("cannot open: ") + std::strerror(errno));
+std::string readInputFile(const std::string& path, size_t maxBytes) {
   std::string text;
-  char buf[1 << 16];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, n);
-  const bool failed = std::ferror(f);
-  const int err = errno;
-  std::fclose(f);
-  if (failed) throw SceneError(path, "", std::string("cannot read: ") + std::strerror(err));
+  if (const std::string why = checkInputFile(path, maxBytes, &text); !why.empty()) throw SceneError(path, "", why);
+  return text;
+}
 
+std::string checkInputFile(const std::string& path, size_t maxBytes, std::string* contents) {
+  if (path.find('\0') != std::string::npos) return "the path holds a NUL character";
+  if (path.empty()) return "expected a file name, got an empty one";
+  // A FIFO, a terminal or /dev/zero would block or never end: only regular files, checked on
+  // the open descriptor (O_NONBLOCK: opening a FIFO does not wait for a writer).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return std::string("cannot open: ") + std::strerror(errno);
+  struct stat st {};
+  std::string why;
+  if (::fstat(fd, &st) != 0) {
+    why = std::string("cannot read: ") + std::strerror(errno);
+  } else if (S_ISDIR(st.st_mode)) {
+    why = std::string("cannot open: ") + std::strerror(EISDIR);
+  } else if (!S_ISREG(st.st_mode)) {
+    why = "not a regular file (a pipe, device or socket); give a file";
+  } else if (static_cast<unsigned long long>(st.st_size) > maxBytes) {
+    why = "the file is " + std::to_string(st.st_size) + " bytes; expected at most " + std::to_string(maxBytes);
+  } else if (contents) {
+    contents->clear();
+    contents->reserve(static_cast<size_t>(st.st_size));
+    char buf[1 << 16];
+    for (;;) {
+      const ssize_t n = ::read(fd, buf, sizeof buf);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) {
+        why = std::string("cannot read: ") + std::strerror(errno);
+        break;
+      }
+      if (n == 0) break;
+      contents->append(buf, static_cast<size_t>(n));
+      if (contents->size() > maxBytes) {  // grew while we read
+        why = "the file is more than " + std::to_string(maxBytes) + " bytes";
+        break;
+      }
+    }
+  }
+  ::close(fd);
+  return why;
+}
+
+Scene loadScene(const std::string& path, const SceneLimits& lim) {
+  namespace fs = std::filesystem;
+  const std::string text = readInputFile(path, limits::kMaxSceneBytes);
   const fs::path parent = fs::path(path).parent_path();
-  return parseScene(text, path, parent.empty() ? "." : parent.string());
+  return parseScene(text, path, parent.empty() ? "." : parent.string(), lim);
 }
 
 }  // namespace substep

@@ -3,6 +3,7 @@
 // e.g. "assets/scenes/x.json: bodies[3].shape.radius: expected a number > 0, got -1".
 #pragma once
 
+#include "physics/limits.h"
 #include "physics/model.h"
 #include "physics/settings.h"
 #include "physics/state.h"
@@ -39,9 +40,23 @@ struct Scene {
   std::vector<CameraPreset> cameras;
 };
 
-// Reads and validates a scene file. Throws SceneError.
-Scene loadScene(const std::string& path);
+// What a scene may hold in total (the numbers in it are checked against physics/limits.h).
+struct SceneLimits {
+  long long maxBodies = limits::kDefaultMaxBodies;  // bodies, and joints, of the whole scene
+};
+
+// Reads and validates a scene file: a regular file of at most limits::kMaxSceneBytes, every
+// number within its range (limits.h). Throws SceneError.
+Scene loadScene(const std::string& path, const SceneLimits& lim = {});
 // Same from text; `file` is used in messages, `baseDir` to resolve mesh paths.
-Scene parseScene(const std::string& text, const std::string& file, const std::string& baseDir);
+Scene parseScene(const std::string& text, const std::string& file, const std::string& baseDir,
+                 const SceneLimits& lim = {});
+
+// Why `path` cannot be read as an input file, or "" if it can: it must be a regular file (not a
+// FIFO, device or folder: those block or never end) of at most maxBytes, with no NUL in its
+// name. With `contents`, reads it too. Used for scenes and meshes.
+std::string checkInputFile(const std::string& path, size_t maxBytes, std::string* contents = nullptr);
+// The contents of an input file; throws SceneError(path, "", why).
+std::string readInputFile(const std::string& path, size_t maxBytes);
 
 }  // namespace substep

@@ -1,8 +1,15 @@
 // Solver settings: which of the report's algorithms steps the world, and its parameters.
+// Every setting is one row of settingTable(): its key in scene files and method specs, its
+// command-line option, its range and its help. Scene files, the command line, `--compare` and the
+// lab's sweeps all read settings through that table, so a range is stated once.
 #pragma once
+
+#include "physics/limits.h"
 
 #include <optional>
 #include <string>
+#include <variant>
+#include <vector>
 
 namespace substep {
 
@@ -46,7 +53,59 @@ struct SolverOverrides {
   // `--preset 4-medium` means Havok's medium preset on any scene. Values given on the command line
   // next to the preset still win over it (resolve() applies them after the preset).
   SolverOverrides withCommandLine(const SolverOverrides& commandLine) const;
+  bool empty() const;
 };
+
+// --- the table -------------------------------------------------------------------------------
+
+enum class SettingKind { Integer, Real, Flag, Choice };
+
+struct SettingSpec {
+  const char* key;      // scene files' "solver" block and method specs: "substeps"
+  const char* alias;    // method specs' short form: "n" ("" if none)
+  const char* flag;     // command line without dashes: "substeps" (flags also get "no-" + flag)
+  SettingKind kind;
+  Range range;          // Integer, Real
+  std::vector<std::string> choices;  // Choice
+  const char* help;     // one line, for --help and docs
+  std::variant<std::optional<Algorithm> SolverOverrides::*, std::optional<int> SolverOverrides::*,
+               std::optional<double> SolverOverrides::*, std::optional<bool> SolverOverrides::*,
+               std::optional<std::string> SolverOverrides::*>
+      field;
+
+  // "an integer in [1, 1000]", "a number in (0, 2)", "on or off", "one of a1, a2, ...".
+  std::string expected() const;
+  bool isSet(const SolverOverrides& o) const;
+  std::string valueText(const SolverOverrides& o) const;  // "" if unset
+  void copy(const SolverOverrides& from, SolverOverrides& to) const;
+  void clear(SolverOverrides& o) const;
+  // Setting a value checks it against the range or the choices; the message of the
+  // std::invalid_argument thrown is "expected <expected()>, got <value>".
+  void setNumber(SolverOverrides& o, double x) const;        // Integer, Real
+  void setFlag(SolverOverrides& o, bool b) const;            // Flag
+  void setText(SolverOverrides& o, const std::string& text) const;  // any kind, parsed
+};
+
+const std::vector<SettingSpec>& settingTable();
+// By key, alias or command-line flag name; null if none.
+const SettingSpec* findSetting(const std::string& name);
+// "n, m, kappa, ..." for messages.
+std::string settingKeys();
+
+// --- method specs ----------------------------------------------------------------------------
+// An algorithm and settings, as `--compare` and the lab write them:
+//     a5:n=4:kappa=0.85          a2:m=10:omega=1.3:warm=on
+// Settings after the algorithm are key=value (keys or aliases of the table), separated by ':'
+// (or ';'). A value may be a list a|b|c: the spec then names the grid of every combination.
+struct MethodSpec {
+  std::string text;            // as written (one combination: the lists resolved)
+  SolverOverrides overrides;   // the algorithm and the settings it names
+};
+// One spec; with value lists, every combination in order (the last key varies fastest).
+// Throws std::invalid_argument naming the spec, the key and what was expected.
+std::vector<MethodSpec> expandMethodSpec(const std::string& spec);
+// A comma-separated list of specs, each expanded.
+std::vector<MethodSpec> parseMethodSpecs(const std::string& list);
 
 // Fills what the overrides leave open with the algorithm's defaults: A1/A2 as the report has
 // them (ω 1, 10 iterations, rows one by one), A3-A5 with Havok's (n 4, m 1, τ 0.6, κ 1, blocks).

@@ -1,7 +1,9 @@
 #include "physics/world.h"
 
 #include "physics/collision/contact_margin.h"
+#include "physics/limits.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -56,7 +58,7 @@ void World::setSettings(const SolverSettings& settings) {
   ctx_.subW.assign(nb * static_cast<size_t>(settings.substeps), Vec3::Zero());
 }
 
-void World::geometry() {
+bool World::geometry() {
   // How far each body can get in this step, plus half the contact margin: a pair is examined
   // when its bodies can meet, and speculative points cover the gap they can close.
   const double h = settings_.dt;
@@ -68,7 +70,15 @@ void World::geometry() {
     if (!b.isStatic) reach_[i] += h * (s.v.norm() + gh + s.w.norm() * b.shape.boundingRadius());
   }
   broadphase_.update(state_, reach_);
-  broadphase_.findPairs(pairs_);
+  const size_t cap = std::max<size_t>(limits::kMinPairCap, limits::kMaxPairsPerBody * model_.bodies.size());
+  if (!broadphase_.findPairs(pairs_, cap)) {
+    report_.finite = false;
+    report_.overloaded = true;
+    report_.problem = "more than " + std::to_string(cap) + " pairs of bodies overlap (" +
+                      std::to_string(limits::kMaxPairsPerBody) +
+                      " per body): bodies start inside each other, or the scene has collapsed into one heap";
+    return false;
+  }
   manifolds_.beginStep();
   report_.cachedPairs = 0;
   ContactPatch patch;
@@ -102,6 +112,7 @@ void World::geometry() {
   int points = 0;
   for (const Manifold& m : manifolds_.manifolds()) points += m.count;
   report_.contactPoints = points;
+  return true;
 }
 
 void World::formulate() {
@@ -138,10 +149,11 @@ bool World::diverged() {
 
 const StepReport& World::step() {
   report_.finite = true;
+  report_.overloaded = false;
   report_.problem.clear();
   if (diverged()) return report_;  // FCL's AABB tree crashes on such boxes
   auto t0 = Clock::now();
-  geometry();
+  if (!geometry()) return report_;
   report_.times.s1 = since(t0);
 
   t0 = Clock::now();

@@ -35,7 +35,9 @@ constexpr double kMaxCoordinate = 1e6;  // [m]
 constexpr double kMaxSpeed = 1e6;       // [m/s] and [rad/s]
 
 struct StepReport {
-  bool finite = true;    // false: the state diverged (non-finite or beyond the limits above)
+  bool finite = true;    // false: the step stopped: the state diverged (non-finite or beyond the
+                         // limits above), or too many bodies overlap (below)
+  bool overloaded = false;  // ... because more bodies overlap than limits::kMaxPairsPerBody allows
   std::string problem;   // then: which body, and what
   StageTimes times;      // this step
   StepStats solver;
@@ -53,7 +55,8 @@ class World {
 
   // One step of length settings.dt. Returns finite = false, with the body and the value in
   // `problem`, when a coordinate or velocity is not finite or beyond kMaxCoordinate/kMaxSpeed,
-  // after the step or already before it (then without stepping).
+  // after the step or already before it (then without stepping); and with overloaded = true,
+  // without stepping, when more pairs of bodies overlap than limits::kMaxPairsPerBody per body.
   const StepReport& step();
 
   // Changes the solver between steps, keeping the contact manifolds and their impulses (so warm
@@ -76,7 +79,7 @@ class World {
 
  private:
   bool diverged();                 // checks the state, fills report_.problem
-  void geometry();                 // s1
+  bool geometry();                 // s1; false when overloaded
   void formulate();                // s2
 
   const Model& model_;

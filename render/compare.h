@@ -1,11 +1,10 @@
 // Side-by-side comparisons: the settings of each panel, parsed from `--compare`.
 //
-// Syntax: panels separated by commas, each an algorithm followed by `:key=value` settings
-// (`;` also separates settings, if quoted):
+// Syntax: method specs (physics/settings.h) separated by commas, one panel each:
 //     a2:m=4,a5:n=4            a2 with 4 iterations beside a5 with 4 sub-steps
 //     a1,a2:m=10:omega=1.3,a5:n=8:m=2:kappa=1.1:tau=0.9
-// Keys: n (substeps), m (iterations: A2's cap, A3-A5's micro-iterations), kappa, tau, omega,
-// dt (or h), tolerance, slop, preset (e.g. 4-medium), warm (on/off), block (on/off), split (on/off).
+//     a5:n=2|4                 a5 at 2 and at 4 sub-steps (a value list: one panel per value)
+// Keys and ranges are the solver settings' table (settingTable()).
 #pragma once
 
 #include "physics/settings.h"

@@ -13,9 +13,13 @@ SUBSTEP_PACKAGES=(
   ffmpeg gnuplot-nox
 )
 
+# The fuzz build's compiler: clang 14 with libFuzzer and the sanitizer runtimes.
+SUBSTEP_FUZZ_PACKAGES=(clang libclang-rt-14-dev)
+
+# substep_install [extra packages...]
 substep_install() {
   local missing=() p
-  for p in "${SUBSTEP_PACKAGES[@]}"; do
+  for p in "${SUBSTEP_PACKAGES[@]}" "$@"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   ((${#missing[@]} == 0)) && return 0

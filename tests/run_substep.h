@@ -17,9 +17,9 @@ struct Outcome {
   std::string output;  // stdout and stderr
 };
 
-// Runs `substep ARGS` from the source folder, with `env` (VAR=value ...) in front.
-inline Outcome runSubstep(const std::string& args, const std::string& env = "") {
-  const std::string cmd = "cd " SUBSTEP_SOURCE_DIR " && " + env + " " SUBSTEP_EXE " " + args + " 2>&1";
+// Runs a shell command line from the source folder, stdout and stderr together.
+inline Outcome runShell(const std::string& command) {
+  const std::string cmd = "cd " SUBSTEP_SOURCE_DIR " && " + command + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   Outcome r{-1, ""};
   if (!p) return r;
@@ -29,6 +29,17 @@ inline Outcome runSubstep(const std::string& args, const std::string& env = "") 
   const int st = pclose(p);
   r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   return r;
+}
+
+// Runs `substep ARGS` from the source folder, with `env` (VAR=value ...) in front.
+inline Outcome runSubstep(const std::string& args, const std::string& env = "") {
+  return runShell(env + " " SUBSTEP_EXE " " + args);
+}
+
+// Runs `substep ARGS` with stderr a terminal (a pseudo-terminal from script(1)), as a person
+// at a shell would: the progress bar shows only then.
+inline Outcome runSubstepOnTerminal(const std::string& args) {
+  return runShell("script -qec '" SUBSTEP_EXE " " + args + "' /dev/null");
 }
 
 // <build>/<suite>/<test name>/: CTest runs tests in parallel, and some look at what is in theirs.

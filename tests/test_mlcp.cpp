@@ -120,10 +120,10 @@ TEST(DirectSolver, SolvesEveryStepOfRandomPiles) {
       const StepReport& r = w.step();
       ++steps;
       if (r.solver.rows > 0) ++withRows;
-      ++methods[r.solver.iterations];  // A1 reports which method answered
+      ++methods[r.solver.directMethod];  // A1 reports which method answered
       worst = std::max(worst, r.solver.residual);
       EXPECT_LE(r.solver.residual, 1e-9) << "pile " << t << " step " << n << " rows " << r.solver.rows
-                                         << " method " << r.solver.iterations;
+                                         << " method " << r.solver.directMethod;
       if (r.solver.residual > 1e-9) ++above;
     }
   }

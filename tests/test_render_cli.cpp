@@ -177,14 +177,21 @@ TEST(RenderCli, ComparesSettingsInAGrid) {
   EXPECT_LT(border[0] + border[1] + border[2], 30);
 }
 
-TEST(RenderCli, ShowsProgressForLongRenders) {
+// The bar is for a person at a terminal: drawn when stderr is one (here a pseudo-terminal made
+// by script(1)), not into a pipe or a log, and never with -q.
+TEST(RenderCli, ShowsProgressForLongRendersOnATerminal) {
   const fs::path d = scratch();
   // Longer than a second of wall time: 240 frames with 210 boxes stepped between them.
-  const Outcome r = run("render assets/scenes/pyramid.json --seconds 4 --size 160x90 -o " + (d / "p").string());
-  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string args = "render assets/scenes/pyramid.json --seconds 4 --size 160x90 -o " + (d / "p").string();
+  Outcome r = substep_test::runSubstepOnTerminal(args);
   EXPECT_NE(r.output.find("render ["), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("/240"), std::string::npos) << r.output;  // frames done of all
   EXPECT_NE(r.output.find("left"), std::string::npos) << r.output;  // time left
+  r = substep_test::runSubstepOnTerminal(args + " -q");
+  EXPECT_EQ(r.output.find("render ["), std::string::npos) << r.output;
+  r = run(args);  // a pipe
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output.find("render ["), std::string::npos) << r.output;
 }
 
 // A simulation that diverges stops the render: exit status 3, a message naming the body, no file.

@@ -155,13 +155,13 @@ TEST(SceneErrors, Syntax) {
 
 TEST(SceneErrors, WrongType) {
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": "1"}})"), "bodies[0].shape.radius",
-              {"expected a number > 0, got string"});
+              {"expected a number in [0.001, 10000], got string"});
   expectError(scene(R"({"name": 5, "shape": {"type": "sphere", "radius": 1}})"), "bodies[0].name",
               {"expected a string, got number"});
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "position": [1, 2]})"),
               "bodies[0].position", {"expected an array of 3 numbers", "got an array of 2"});
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "position": [1, "2", 3]})"),
-              "bodies[0].position[1]", {"expected a number, got string"});
+              "bodies[0].position[1]", {"expected a number in [-100000, 100000], got string"});
   expectError(scene(kBall, R"("solver": {"warm_start": 1})"), "solver.warm_start", {"expected true or false, got number"});
   expectError(R"({"bodies": {}})", "bodies", {"expected an array, got object"});
   expectError("[]", "(top level)", {"expected an object, got array"});
@@ -189,30 +189,30 @@ TEST(SceneErrors, UnknownKey) {
 
 TEST(SceneErrors, BadNumbers) {
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "mass": -1})"), "bodies[0].mass",
-              {"expected a number > 0, got -1"});
+              {"expected a number in [1e-6, 1e9], got -1"});
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "density": 0})"), "bodies[0].density",
-              {"expected a number > 0, got 0"});
+              {"expected a number in [0.001, 1000000], got 0"});
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "mass": 1, "density": 2})"),
               "bodies[0].density", {"either \"mass\" or \"density\""});
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "restitution": 1.5})"),
               "bodies[0].restitution", {"in [0, 1]", "1.5"});
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "orientation": [0, 0, 0, 0]})"),
               "bodies[0].orientation", {"non-zero quaternion"});
-  expectError(scene(kBall, R"("solver": {"dt": 0})"), "solver.dt", {"in (0, 1]", "got 0"});
+  expectError(scene(kBall, R"("solver": {"dt": 0})"), "solver.dt", {"in [1e-6, 1]", "got 0"});
   expectError(scene(kBall, R"("solver": {"omega": 2})"), "solver.omega", {"in (0, 2)"});
-  expectError(scene(kBall, R"("solver": {"iterations": 2.5})"), "solver.iterations", {"an integer >= 1", "2.5"});
+  expectError(scene(kBall, R"("solver": {"iterations": 2.5})"), "solver.iterations", {"an integer in [1, 100000]", "2.5"});
   expectError(scene(kBall, R"("solver": {"algorithm": "a9"})"), "solver.algorithm", {"a1, a2, a3, a4, a5", "\"a9\""});
 }
 
 TEST(SceneErrors, ZeroSizeShape) {
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 0}})"), "bodies[0].shape.radius",
-              {"expected a number > 0, got 0"});
+              {"expected a number in [0.001, 10000], got 0"});
   expectError(scene(R"({"name": "a", "shape": {"type": "box", "half_extents": [1, 0, 1]}})"),
-              "bodies[0].shape.half_extents[1]", {"expected a number > 0, got 0"});
+              "bodies[0].shape.half_extents[1]", {"expected a number in [0.001, 10000], got 0"});
   expectError(scene(R"({"name": "a", "shape": {"type": "capsule", "radius": 0.2, "half_height": -0.1}})"),
-              "bodies[0].shape.half_height", {"> 0", "-0.1"});
+              "bodies[0].shape.half_height", {"in [0.001, 10000]", "-0.1"});
   expectError(scene(R"({"name": "a", "shape": {"type": "convex", "file": "../meshes/gem.obj", "scale": 0}})"),
-              "bodies[0].shape.scale", {"> 0"});
+              "bodies[0].shape.scale", {"in [0.001, 1000]"});
 }
 
 TEST(SceneErrors, UnknownTypes) {
@@ -312,6 +312,130 @@ TEST(SceneErrors, Files) {
   } catch (const SceneError& e) {
     EXPECT_EQ(e.path, "4:5") << e.what();
   }
+}
+
+// Every setting of the table is read from a scene's solver block under its key, and a value
+// outside its range is refused with the table's words: the command line says the same
+// (test_cli.cpp, SolverOptionsUseTheTable).
+TEST(SceneErrors, SolverSettingsComeFromTheTable) {
+  for (const SettingSpec& spec : settingTable()) {
+    const std::string key = spec.key;
+    std::string good, bad;
+    switch (spec.kind) {
+      case SettingKind::Integer: good = numberText(spec.range.lo); bad = numberText(spec.range.hi + 1); break;
+      case SettingKind::Real: good = numberText(spec.range.hi / 2); bad = numberText(spec.range.hi * 2 + 1); break;
+      case SettingKind::Flag: good = "true"; bad = "\"on\""; break;
+      case SettingKind::Choice: good = "\"" + spec.choices.back() + "\""; bad = "\"nonsense\""; break;
+    }
+    std::string extra = "\"solver\": {\"" + key + "\": " + good + "}";
+    const Scene ok = parse(scene(kBall, extra));
+    EXPECT_TRUE(spec.isSet(ok.solver)) << key;
+    extra = "\"solver\": {\"" + key + "\": " + bad + "}";
+    const std::string expected = spec.kind == SettingKind::Flag ? "true or false" : spec.expected();
+    expectError(scene(kBall, extra), "solver." + key, {"expected " + expected});
+  }
+}
+
+// Every number in a scene has a physical range (physics/limits.h); beyond it the value is refused
+// with its path, before anything is built from it.
+TEST(SceneErrors, PhysicalRanges) {
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 2e4}})"), "bodies[0].shape.radius",
+              {"in [0.001, 10000]", "20000"});
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "angular_velocity": [0, 0, 2e4]})"),
+              "bodies[0].angular_velocity[2]", {"in [-10000, 10000]"});
+  expectError(scene(kBall, R"("gravity": [0, -2000, 0])"), "gravity[1]", {"in [-1000, 1000]"});
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "friction": 11})"), "bodies[0].friction",
+              {"in [0, 10]"});
+  // A mass from a density is a mass: a 1 mm ball of air weighs 5e-9 kg.
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 0.001}, "density": 1.2})"),
+              "bodies[0].density", {"weighs", "expected a body mass in [1e-6, 1e9] kg"});
+  expectError(scene(kBall, R"("cameras": [{"name": "c", "distance": 1e9}])"), "cameras[0].distance", {"in [0.001, 100000]"});
+  expectError(scene(kBall, R"("cameras": [{"name": "c", "yaw": 1e300}])"), "cameras[0].yaw", {"in [-100000, 100000]"});
+  // What generators make must be in range too, though each parameter is.
+  expectError(scene(kBall, R"("generators": [{"type": "stack", "count": 300, "mass": 1, "half_extents": [500, 500, 500]}])"),
+              "generators[0]", {"generated body", "expected every coordinate in [-100000, 100000]"});
+  // Joint limits and motors.
+  expectError(scene(kBall + std::string(R"(, {"name": "b", "shape": {"type": "sphere", "radius": 0.5}})"),
+                    R"("joints": [{"type": "hinge", "bodies": ["ball", "b"], "anchor": [0, 1, 0], "axis": [1, 0, 0],
+                                  "motor": {"speed": 1e5}}])"),
+              "joints[0].motor.speed", {"in [-10000, 10000]"});
+}
+
+// The cap on bodies (and joints) of a whole scene, raised by SceneLimits (--max-bodies).
+TEST(SceneErrors, BodyCap) {
+  const std::string pyramid = R"("generators": [{"type": "pyramid", "levels": 20, "half_extents": [0.5, 0.5, 0.5]}])";
+  SceneLimits lim;
+  lim.maxBodies = 200;
+  try {
+    parseScene(scene(kBall, pyramid), "t.json", kScenes, lim);
+    ADD_FAILURE() << "210 boxes accepted under a cap of 200";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.path, "generators[0].levels");
+    EXPECT_NE(e.message.find("20 levels make 210 bodies, 211 with those before: more than the limit of 200"),
+              std::string::npos)
+        << e.what();
+  }
+  lim.maxBodies = 211;
+  EXPECT_EQ(parseScene(scene(kBall, pyramid), "t.json", kScenes, lim).model.bodies.size(), 211u);
+  lim.maxBodies = 3;
+  try {
+    parseScene(scene(kBall + std::string(",") + kBall + "," + kBall + "," + kBall), "t.json", kScenes, lim);
+    ADD_FAILURE() << "4 bodies accepted under a cap of 3";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.path, "bodies");
+  }
+}
+
+// The text itself: numbers beyond a double, nesting, names, duplicate keys deep inside, NUL.
+TEST(SceneErrors, HostileText) {
+  try {
+    parse("{\"bodies\": [\n  {\"name\": \"a\", \"mass\": -1e999}]}");
+    ADD_FAILURE();
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.path, "2:30") << e.what();  // line and column of the number
+    EXPECT_NE(e.message.find("\"-1e999\" is beyond the range of a double"), std::string::npos) << e.what();
+  }
+  try {
+    parse(std::string(100000, '[') + std::string(100000, ']'));
+    ADD_FAILURE();
+  } catch (const SceneError& e) {
+    EXPECT_NE(e.message.find("nested more than 64 deep"), std::string::npos) << e.what();
+    EXPECT_LT(std::string(e.what()).size(), 500u);
+  }
+  expectError(scene(R"({"name": "a\nb", "shape": {"type": "sphere", "radius": 1}})"), "bodies[0].name",
+              {"control character", "\"a\\x0ab\""});
+  expectError(scene(R"({"name": ")" + std::string(300, 'x') + R"(", "shape": {"type": "sphere", "radius": 1}})"),
+              "bodies[0].name", {"300 bytes; expected at most 256"});
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1, "radius": 2}})"), "bodies[0].shape",
+              {"duplicate key \"radius\""});
+  // A key a megabyte long is quoted, not printed whole.
+  try {
+    parse(scene(kBall, "\"" + std::string(1 << 20, 'k') + "\": 1"));
+    ADD_FAILURE();
+  } catch (const SceneError& e) {
+    EXPECT_LT(std::string(e.what()).size(), 1000u);
+  }
+}
+
+TEST(SceneErrors, InputFilesMustBeRegular) {
+  EXPECT_EQ(checkInputFile("/dev/zero", 100), "not a regular file (a pipe, device or socket); give a file");
+  EXPECT_EQ(checkInputFile(std::string("a\0b", 3), 100), "the path holds a NUL character");
+  EXPECT_EQ(checkInputFile(kScenes + "/stack.json", 10).rfind("the file is ", 0), 0u);
+  EXPECT_EQ(checkInputFile(kScenes + "/stack.json", 1 << 20), "");
+  std::string text;
+  EXPECT_EQ(checkInputFile(kScenes + "/stack.json", 1 << 20, &text), "");
+  EXPECT_NE(text.find("\"bodies\""), std::string::npos);
+}
+
+// Convex meshes must be closed; vertices no triangle uses are dropped.
+TEST(SceneErrors, ConvexMeshesMustBeClosed) {
+  expectError(scene(R"({"name": "a", "shape": {"type": "convex", "file": "open_box.obj"}})"), "bodies[0].shape.file",
+              {"not a closed surface", "4 edges border one triangle only", "convex-hull"}, kSource + "/tests/data/meshes");
+  Mesh m = loadMesh(kSource + "/assets/meshes/gem.obj");
+  EXPECT_EQ(closedSurfaceProblem(m), "");
+  m.triangles.pop_back();
+  EXPECT_NE(closedSurfaceProblem(m).find("3 edges border one triangle only"), std::string::npos)
+      << closedSurfaceProblem(m);
 }
 
 // ---------------------------------------------------------------- frames and defaults
@@ -536,7 +660,7 @@ TEST(Generators, ChainJointAnchorsCoincide) {
               "generators[0].link.type", {"capsule, box or sphere", "cylinder"});
   expectError(scene(kBall, R"("generators": [{"type": "chain", "count": 0, "link": {"type": "sphere", "radius": 0.1},
       "anchor": [0, 0, 0], "spacing": 0.5}])"),
-              "generators[0].count", {"an integer in [1, 100000], got 0"});
+              "generators[0].count", {"an integer in [1, 1000000], got 0"});
   expectError(scene(kBall, R"("generators": [{"type": "stack", "count": 2, "half_extents": [0.5, 0.5, 0.5],
       "spacing": 1}])"),
               "generators[0]", {"unknown key \"spacing\""});

@@ -38,7 +38,9 @@ CollisionShape makeCollisionShape(const Shape& s) {
         faces->push_back(3);
         faces->insert(faces->end(), t.begin(), t.end());
       }
-      c.geometry = std::make_shared<fcl::Convexd>(verts, static_cast<int>(s.mesh->triangles.size()), faces, true);
+      // Checked closed when loaded (closedSurfaceProblem): FCL need not check again, and its own
+      // message runs to a line per edge.
+      c.geometry = std::make_shared<fcl::Convexd>(verts, static_cast<int>(s.mesh->triangles.size()), faces, false);
       break;
     }
     case ShapeType::Plane: c.geometry = std::make_shared<fcl::Halfspaced>(s.normal, s.offset); break;

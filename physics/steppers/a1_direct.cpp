@@ -29,8 +29,10 @@ class DirectStepper final : public Stepper {
                                " rows; use --algo a2..a5 for a scene this large");
     assembleMLCP(cs.rows, c.mass, c.v.data(), c.w.data(), p_);
     const DirectResult res = solveDirect(p_, lambda_);
-    if (!res.ok) throw std::runtime_error("a1: the direct MLCP solver failed on a " + std::to_string(n) + "-row problem");
-    c.stats.iterations = res.method;
+    if (!res.ok)
+      throw std::runtime_error("a1: the direct MLCP solver found no answer to a " + std::to_string(n) +
+                               "-row problem within its work budget; use --algo a2..a5 for this scene");
+    c.stats.directMethod = res.method;
     c.stats.residual = res.residual;
     for (int i = 0; i < n; ++i) {
       Row& r = cs.rows[static_cast<size_t>(i)];

@@ -16,7 +16,9 @@ LemkeResult lemke(const Eigen::MatrixXd& M, const Eigen::VectorXd& q, Eigen::Vec
   if (maxPivots <= 0) maxPivots = 50 * n + 100;
   // Tableau rows:  I w - M z - e z0 = q. Columns: w (0..n-1), z (n..2n-1), z0 (2n), rhs (2n+1).
   const int cz0 = 2 * n, crhs = 2 * n + 1;
-  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(n, 2 * n + 2);
+  // Row-major: a pivot is row operations over the whole tableau.
+  using Tableau = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  Tableau T = Tableau::Zero(n, 2 * n + 2);
   T.leftCols(n).setIdentity();
   T.block(0, n, n, n) = -M;
   T.col(cz0).setConstant(-1.0);

@@ -34,6 +34,15 @@ void bounds(const DenseMLCP& p, const std::vector<double>& x, int i, double& lo,
 
 // One Dantzig solve with the friction bounds fixed at ±μ Σ of `normals`' λ. ODE's own friction
 // index takes one normal per friction row, and a manifold's friction is bounded by several.
+// The work A1 may do in one step, in floating-point operations estimated from the sizes:
+// a dense factorisation of n rows is about n³/3, a complete orthogonal decomposition 4n³/3, a
+// Lemke pivot 2nz² for nz variables, a Gauss-Seidel sweep n². Each stage asks before it starts.
+struct Budget {
+  double left;
+  bool afford(double flops) const { return flops <= left; }
+  void spend(double flops) { left -= flops; }
+};
+
 bool dantzig(const DenseMLCP& p, double cfm, const std::vector<double>& normals, std::vector<double>& x) {
   const int n = p.n;
   const int stride = dPAD(n);
@@ -134,7 +143,7 @@ namespace {
 //   two bounds         λ = β⁺ - β⁻,  w⁺ = u + γ⁺,  w⁻ = -u + γ⁻,
 //                      wγ⁺ = hi(λ) - β⁺,  wγ⁻ = -lo(λ) - β⁻    (friction: hi = -lo = μλn)
 // with u = Γλ - b. Sliding shows as γ > 0: the velocity the friction bound cannot stop.
-bool lemkeSolve(const DenseMLCP& p, std::vector<double>& x) {
+bool lemkeSolve(const DenseMLCP& p, std::vector<double>& x, Budget& budget) {
   const int n = p.n;
   Eigen::MatrixXd G(n, n);
   for (int i = 0; i < n; ++i)
@@ -238,7 +247,16 @@ bool lemkeSolve(const DenseMLCP& p, std::vector<double>& x) {
     }
   }
   Eigen::VectorXd z;
-  if (!lemke(M, q, z).ok) return false;
+  // Lemke's pivots are bounded: on the 1314 solves of the MLCP, stacking and claims tests that
+  // found a solution, none took more pivots than its LCP has variables (at most 0.99 nz); those
+  // that end on a ray take 2 to 4 times as many, each pivot O(nz²), which made a mass-ratio chain
+  // spend minutes in one step. The cap leaves a factor of two.
+  const double perPivot = 2.0 * nz * nz;
+  const int pivots = static_cast<int>(std::min<double>(kLemkePivotsPerVariable * nz + 10, budget.left / perPivot));
+  if (pivots < nz) return false;  // not even one pivot per variable: no hope within the budget
+  const LemkeResult lr = lemke(M, q, z, pivots);
+  budget.spend(lr.pivots * perPivot);
+  if (!lr.ok) return false;
   const Eigen::VectorXd lamR = lam0 + P * z;
   x.assign(static_cast<size_t>(n), 0.0);
   for (int li = 0; li < nr; ++li) x[static_cast<size_t>(R[static_cast<size_t>(li)])] = lamR[li];
@@ -253,13 +271,15 @@ bool lemkeSolve(const DenseMLCP& p, std::vector<double>& x) {
 // bounds: (Γλ - b)_i = 0; rows on them: λ_i = bound), removing the round-off a pivoting
 // sequence leaves. Redundant rows (four points under one box) make the system singular: the
 // minimum-norm solution is taken.
-void polish(const DenseMLCP& p, std::vector<double>& x) {
+void polish(const DenseMLCP& p, std::vector<double>& x, Budget& budget) {
   const int n = p.n;
   Eigen::MatrixXd S(n, n);
   Eigen::VectorXd r(n);
   double best = mlcpResidual(p, x);
   // A corrected λ can move a row across a bound: classify again from the better answer.
-  for (int round = 0; round < 4 && best > 0; ++round) {
+  const double perRound = 4.0 / 3.0 * std::pow(static_cast<double>(n), 3) + 2.0 * n * n;
+  for (int round = 0; round < 4 && best > 0 && budget.afford(perRound); ++round) {
+    budget.spend(perRound);
     S.setZero();
     r.setZero();
     double scale = 0;
@@ -320,8 +340,10 @@ void densePgs(const DenseMLCP& p, std::vector<double>& x, int sweeps) {
 
 DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& x, double cfm) {
   DirectResult res;
+  Budget budget{kDirectWorkBudget};
+  const double n = p.n;
   auto consider = [&](std::vector<double>& y, int method) {
-    polish(p, y);
+    polish(p, y, budget);
     const double r = mlcpResidual(p, y);
     if (!res.ok || r < res.residual) {
       x = y;
@@ -331,28 +353,34 @@ DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& x, double cfm)
     }
     return res.residual <= kDirectTolerance;
   };
+  auto finish = [&] {
+    res.work = kDirectWorkBudget - budget.left;
+    return res;
+  };
   // 1. ODE's Dantzig, exact for fixed bounds: friction first frictionless, then bounded by the
   //    normals of the previous solve, a few rounds while the normals settle.
   std::vector<double> y, normals(static_cast<size_t>(p.n), 0.0);
-  for (int round = 0; round < 4; ++round) {
+  const double perDantzig = n * n * n / 3 + n * n;
+  for (int round = 0; round < 4 && budget.afford(perDantzig); ++round) {
+    budget.spend(perDantzig);
     if (!dantzig(p, cfm, normals, y)) break;
     normals = y;
-    if (round > 0 && consider(y, 1)) return res;
+    if (round > 0 && consider(y, 1)) return finish();
   }
   // 2. Where those bounds disagree with the final normals: Lemke on the friction LCP.
-  if (lemkeSolve(p, y) && consider(y, 2)) return res;
+  if (lemkeSolve(p, y, budget) && consider(y, 2)) return finish();
   // 3. Lemke can stop on a ray for friction LCPs that have a solution (they are not
   //    copositive-plus): Gauss-Seidel from the best answer finds the active set, polish solves it.
   //    Rounds of sweeps, each polished, about 4e7 multiply-adds in all.
   y.assign(static_cast<size_t>(p.n), 0.0);
-  const double n2 = static_cast<double>(p.n) * p.n;
-  const int sweeps = static_cast<int>(std::clamp(4e6 / n2, 10.0, 10000.0));
-  for (int round = 0; round < 10; ++round) {
+  const int sweeps = static_cast<int>(std::clamp(4e6 / (n * n), 10.0, 10000.0));
+  for (int round = 0; round < 10 && budget.afford(sweeps * n * n); ++round) {
+    budget.spend(sweeps * n * n);
     densePgs(p, y, sweeps);
     std::vector<double> polished = y;
     if (consider(polished, 3)) break;
   }
-  return res;
+  return finish();
 }
 
 }  // namespace substep

@@ -25,6 +25,14 @@ struct DenseMLCP {
 void assembleMLCP(const std::vector<Row>& rows, const std::vector<BodyMass>& mass, const Vec3* v, const Vec3* w,
                   DenseMLCP& out);
 
+// Lemke's method stops after this many pivots per variable of its LCP (docs/algorithms.md).
+constexpr int kLemkePivotsPerVariable = 2;
+
+// A1's work per step, in floating-point operations estimated from the problem's size (Dantzig
+// n³/3, a polish 4n³/3, a Lemke pivot 2nz², a sweep n²): about 3 s on this machine. Within it the
+// solver chain stops at the first exact answer; beyond it, it keeps the best answer so far.
+constexpr double kDirectWorkBudget = 2e10;
+
 // The residual A1 aims for [m/s].
 constexpr double kDirectTolerance = 1e-10;
 
@@ -32,6 +40,7 @@ struct DirectResult {
   bool ok = false;
   int method = 0;               // what gave the answer: 1 Dantzig, 2 Lemke, 3 Gauss-Seidel + polish
   double residual = 0;          // mlcpResidual of the answer
+  double work = 0;              // floating-point operations spent, estimated (at most kDirectWorkBudget)
 };
 
 // Solves p for λ (size n). Γ is regularised by cfm times its diagonal so that redundant

@@ -16,7 +16,8 @@
 namespace substep {
 
 struct StepStats {
-  int iterations = 0;      // sweeps done (A2: until converged or capped; A3-A5: n·m)
+  int iterations = 0;      // sweeps done (A2: until converged or capped; A3-A5: n·m; A1: 0)
+  int directMethod = 0;    // A1: what answered: 1 Dantzig, 2 Lemke, 3 Gauss-Seidel and polish
   double residual = 0;     // A1: MLCP residual [m/s]; A2: largest row velocity change in the last sweep
   int rows = 0;
 };
