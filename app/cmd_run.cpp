@@ -1,6 +1,7 @@
 // substep run: steps a scene and writes what happened (trajectory CSV, metrics JSON, a summary).
 #include "app/commands.h"
 #include "app/common.h"
+#include "physics/failure.h"
 #include "physics/world.h"
 
 #include <nlohmann/json.hpp>
@@ -95,6 +96,7 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       if (opt->metrics) metrics = std::make_unique<AtomicFile>(*opt->metrics);
 
       World world(scene.model, settings, scene.initial);
+      FailureWatch watch(scene.model, scene.initial);
       nlohmann::json series = {{"step", nlohmann::json::array()},   {"time", nlohmann::json::array()},
                                {"kinetic", nlohmann::json::array()}, {"potential", nlohmann::json::array()},
                                {"penetration", nlohmann::json::array()}, {"joint_error", nlohmann::json::array()},
@@ -140,6 +142,7 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
         }
         const StepReport& r = world.step();
         done = world.state().step;
+        watch.observe(world.state(), r.finite);
         maxResidual = std::max(maxResidual, r.solver.residual);
         maxIterations = std::max<long long>(maxIterations, r.solver.iterations);
         sumIterations += r.solver.iterations;
@@ -194,6 +197,13 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
           j["solver"]["direct_method_steps"] = {
               {"dantzig", directMethods[1]}, {"lemke", directMethods[2]}, {"gauss_seidel", directMethods[3]}};
         j["max_displacement"] = {{"body", mover}, {"metres", maxMove}};
+        const FailureReport& f = watch.report();
+        auto time = [](double t) { return t < 0 ? nlohmann::json(nullptr) : nlohmann::json(t); };
+        j["failure"] = {{"verdict", f.verdict()},          {"sag_time", time(f.sagTime)},
+                        {"collapse_time", time(f.collapseTime)}, {"diverge_time", time(f.divergeTime)},
+                        {"max_sag", f.maxSag},              {"max_sideways", f.maxSideways},
+                        {"max_speed", f.maxSpeed},          {"max_energy_gain", f.maxEnergyGain},
+                        {"collapsed_body", f.collapsedBody}};
         j["series"] = series;
         metrics->out() << j.dump(1) << '\n';
         metrics->commit();
@@ -209,7 +219,10 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
                   << std::setprecision(4) << "violation max penetration " << worstPen * 1e3 << " mm, max joint error "
                   << worstJoint * 1e3 << " mm\n"
                   << "energy    kinetic " << world.kineticEnergy() << " J, potential " << world.potentialEnergy() << " J\n"
-                  << "moved     largest displacement " << maxMove * 1e2 << " cm (" << mover << ")\n";
+                  << "moved     largest displacement " << maxMove * 1e2 << " cm (" << mover << ")\n"
+                  << "verdict   " << watch.report().verdict()
+                  << (watch.report().collapsedBody.empty() ? "" : " (" + watch.report().collapsedBody + ")")
+                  << "; fastest body " << watch.report().maxSpeed << " m/s\n";
         if (settings.algorithm == Algorithm::A1)
           std::cout << "a1 solves " << directMethods[1] << " steps by Dantzig, " << directMethods[2] << " by Lemke, "
                     << directMethods[3] << " by Gauss-Seidel and polish\n";

@@ -76,18 +76,18 @@ CLI::Validator finiteIn(double lo, double hi) {
 SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& cl) {
   const SolverOverrides merged = scene.solver.withCommandLine(cl);
   const Algorithm algo = merged.algorithm.value_or(Algorithm::A2);
-  if (!subSteps(algo)) {
-    if (cl.substeps && *cl.substeps != 1)
-      throw UsageError(std::string("--substeps: ") + algorithmName(algo) +
-                       " does not sub-step (the report's A1/A2 take one step of h); use --dt for a smaller step, "
-                       "or --algo a3|a4|a5");
+  if (!subSteps(algo) && cl.substeps && *cl.substeps != 1)
+    throw UsageError(std::string("--substeps: ") + algorithmName(algo) +
+                     " does not sub-step (the report's A1/A2 take one step of h); use --dt for a smaller step, "
+                     "or --algo a3|a4|a5|soft");
+  if (!havokScaled(algo)) {
     if (cl.preset)
       throw UsageError(std::string("--preset: presets are Havok's sub-stepping settings; use --algo a3|a4|a5 with it"));
     if (cl.kappa || cl.tau)
       throw UsageError(std::string("--kappa/--tau: ") + algorithmName(algo) + " has no κ or τ; use --algo a3|a4|a5");
   }
   SolverOverrides use = merged;
-  if (!cl.preset && cl.algorithm && merged.preset && !subSteps(algo)) use.preset.reset();  // scene preset, a1/a2 asked
+  if (!cl.preset && cl.algorithm && merged.preset && !havokScaled(algo)) use.preset.reset();  // scene preset, a1/a2 asked
   try {
     return resolve(use);
   } catch (const std::invalid_argument& e) {
@@ -106,11 +106,16 @@ std::string describe(const SolverSettings& s) {
   switch (s.algorithm) {
     case Algorithm::A1: break;
     case Algorithm::A2: o << " iterations<=" << s.iterations << " ω=" << s.omega << " tol=" << s.tolerance; break;
+    case Algorithm::Soft:
+      o << " n=" << s.substeps << " m=" << s.iterations << " contact " << s.contactHertz << " Hz ζ=" << s.contactDamping
+        << " joints " << s.jointHertz << " Hz ζ=" << s.jointDamping;
+      break;
     default: o << " n=" << s.substeps << " m=" << s.iterations << " κ=" << s.kappa << " τ=" << s.tau; break;
   }
   if (s.warmStart) o << " warm-start";
   if (s.splitImpulse) o << " split-impulse";
-  if (s.blockSolve) o << " blocks";
+  if (s.blockSolve && havokScaled(s.algorithm)) o << " blocks";
+  if (s.contactBlocks) o << " contact-blocks";
   return o.str();
 }
 

@@ -44,6 +44,7 @@ const char* algorithmName(Algorithm a) {
     case Algorithm::A3: return "a3";
     case Algorithm::A4: return "a4";
     case Algorithm::A5: return "a5";
+    case Algorithm::Soft: return "soft";
   }
   return "?";
 }
@@ -55,17 +56,19 @@ const char* algorithmTitle(Algorithm a) {
     case Algorithm::A3: return "Havok stepping, conceptual";
     case Algorithm::A4: return "Havok stepping, approximative";
     case Algorithm::A5: return "Havok stepping, actual";
+    case Algorithm::Soft: return "soft step (Box2D v3), an extension";
   }
   return "?";
 }
 
 std::optional<Algorithm> parseAlgorithm(const std::string& s) {
-  for (Algorithm a : {Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5})
+  for (Algorithm a : {Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5, Algorithm::Soft})
     if (s == algorithmName(a)) return a;
   return std::nullopt;
 }
 
-bool subSteps(Algorithm a) { return a == Algorithm::A3 || a == Algorithm::A4 || a == Algorithm::A5; }
+bool havokScaled(Algorithm a) { return a == Algorithm::A3 || a == Algorithm::A4 || a == Algorithm::A5; }
+bool subSteps(Algorithm a) { return havokScaled(a) || a == Algorithm::Soft; }
 
 // --- the table -------------------------------------------------------------------------------
 
@@ -87,12 +90,17 @@ std::string listOf(const std::vector<std::string>& v) {
 std::vector<SettingSpec> makeTable() {
   using K = SettingKind;
   return {
-      {"algorithm", "algo", "algo", K::Choice, {0, 0}, {"a1", "a2", "a3", "a4", "a5"},
-       "Algorithm of the report: a1 (direct), a2 (PGS/PSOR), a3, a4, a5 (Havok sub-stepping)", &O::algorithm},
+      {"algorithm", "algo", "algo", K::Choice, {0, 0}, {"a1", "a2", "a3", "a4", "a5", "soft"},
+       "Algorithm: the report's a1 (direct), a2 (PGS/PSOR), a3, a4, a5 (Havok sub-stepping); soft (Box2D v3's "
+       "soft step, an extension)",
+       &O::algorithm},
       {"dt", "h", "dt", K::Real, {1e-6, 1}, {}, "Time step h [s] (default 1/60)", &O::dt},
-      {"substeps", "n", "substeps", K::Integer, {1, 1000}, {}, "Sub-steps n per step (a3-a5; default 4)", &O::substeps},
+      {"substeps", "n", "substeps", K::Integer, {1, 1000}, {}, "Sub-steps n per step (a3-a5, soft; default 4)",
+       &O::substeps},
       {"iterations", "m", "iterations", K::Integer, {1, 100000}, {},
-       "a2: iteration cap (default 10); a3-a5: micro-iterations m per sub-step (default 1)", &O::iterations},
+       "a2: iteration cap (default 10); a3-a5: micro-iterations m per sub-step; soft: solve and relax sweeps per "
+       "sub-step (default 1)",
+       &O::iterations},
       {"omega", "ω", "omega", K::Real, {0, 2, true, true}, {}, "a2: over-relaxation ω of PSOR (default 1)", &O::omega},
       {"tolerance", "tol", "tolerance", K::Real, {0, 1e3}, {},
        "a2: stop iterating when no row's velocity changes more [m/s] (default 1e-6)", &O::tolerance},
@@ -104,10 +112,45 @@ std::vector<SettingSpec> makeTable() {
       {"warm_start", "warm", "warm-start", K::Flag, {0, 0}, {},
        "Start each (sub-)step from the previous one's impulses (an extension; off in the report)", &O::warmStart},
       {"block_solve", "block", "block-solve", K::Flag, {0, 0}, {},
-       "Solve unbounded ('stable') constraints and contact manifolds as blocks (a3-a5: on)", &O::blockSolve},
+       "Solve unbounded ('stable') joint rows as blocks, as the report's a3-a5 do (a3-a5: on)", &O::blockSolve},
+      {"contact_blocks", "cblock", "contact-blocks", K::Flag, {0, 0}, {},
+       "Solve each manifold's normal rows together as a small LCP (an extension; off in the report's presets)",
+       &O::contactBlocks},
       {"split_impulse", "split", "split-impulse", K::Flag, {0, 0}, {},
        "Correct contact penetration with pseudo-velocities, apart from the velocity solve (an extension)",
        &O::splitImpulse},
+      {"motor_unscaled", "", "motor-unscaled", K::Flag, {0, 0}, {},
+       "Solve motors with κ = τ = 1 so they reach their speed (an extension, on; off: the report's κ and τ on "
+       "every row)",
+       &O::motorUnscaled},
+      {"friction_exempt", "", "friction-exempt", K::Flag, {0, 0}, {},
+       "Keep friction rows out of a4/a5's bias update rule (an extension, on; off: the report's rule on every row)",
+       &O::frictionExempt},
+      {"speculative", "spec", "speculative", K::Flag, {0, 0}, {},
+       "Contact points within a margin before touching, whose gap closes at full speed, not scaled by τ (an "
+       "extension, on; the report has none)",
+       &O::speculative},
+      {"restitution", "", "restitution", K::Flag, {0, 0}, {},
+       "Apply the bodies' restitution after the velocity solve (an extension, on; the report has none)",
+       &O::restitution},
+      {"restitution_threshold", "", "restitution-threshold", K::Real, {0, 100}, {},
+       "Approach speed below which contacts do not bounce [m/s] (default 1)", &O::restitutionThreshold},
+      {"jacobians", "", "jacobians", K::Choice, {0, 0}, {"joints", "stable"},
+       "a5: recompute every joint's Jacobian between sub-steps (joints, an extension, the default) or only the "
+       "'stable' rows' while micro-iterating (stable, the report's IV.4.1)",
+       &O::jacobians},
+      {"contact_hertz", "", "contact-hertz", K::Real, {0.01, 1e4}, {},
+       "soft: contact stiffness as a frequency [Hz] (default 30, at most a quarter of the sub-step rate)",
+       &O::contactHertz},
+      {"contact_damping", "", "contact-damping", K::Real, {0, 1e3}, {}, "soft: contact damping ratio ζ (default 10)",
+       &O::contactDamping},
+      {"joint_hertz", "", "joint-hertz", K::Real, {0.01, 1e4}, {},
+       "soft: joint stiffness as a frequency [Hz] (default 60, at most a quarter of the sub-step rate)",
+       &O::jointHertz},
+      {"joint_damping", "", "joint-damping", K::Real, {0, 1e3}, {}, "soft: joint damping ratio ζ (default 2)",
+       &O::jointDamping},
+      {"push_out", "", "push-out", K::Real, {0, 1e3}, {},
+       "soft: largest speed a contact pushes penetrating bodies apart [m/s] (default 3)", &O::pushOut},
   };
 }
 
@@ -400,8 +443,15 @@ SolverSettings resolve(const SolverOverrides& o) {
   }
   SolverSettings s;
   s.algorithm = o.algorithm.value_or(Algorithm::A2);
-  const bool sub = subSteps(s.algorithm);
-  if (sub) {
+  const bool sub = havokScaled(s.algorithm);
+  if (s.algorithm == Algorithm::Soft) {
+    // Box2D v3's defaults: 4 sub-steps of one solve and one relax sweep, warm started.
+    s.substeps = 4;
+    s.iterations = 1;
+    s.tau = 1.0;
+    s.kappa = 1.0;
+    s.warmStart = true;
+  } else if (sub) {
     // Havok's defaults: 4 sub-steps, 1 micro-iteration, medium stiffness, stable constraints as blocks.
     s.substeps = 4;
     s.iterations = 1;
@@ -421,7 +471,7 @@ SolverSettings resolve(const SolverOverrides& o) {
     applyPreset(*o.preset, s);
   }
   if (o.dt) s.dt = *o.dt;
-  if (o.substeps && sub) s.substeps = *o.substeps;
+  if (o.substeps && subSteps(s.algorithm)) s.substeps = *o.substeps;
   if (o.iterations) s.iterations = *o.iterations;
   if (o.omega) s.omega = *o.omega;
   if (o.tolerance) s.tolerance = *o.tolerance;
@@ -431,6 +481,18 @@ SolverSettings resolve(const SolverOverrides& o) {
   if (o.warmStart) s.warmStart = *o.warmStart;
   if (o.blockSolve) s.blockSolve = *o.blockSolve;
   if (o.splitImpulse) s.splitImpulse = *o.splitImpulse;
+  if (o.contactBlocks) s.contactBlocks = *o.contactBlocks;
+  if (o.motorUnscaled) s.motorUnscaled = *o.motorUnscaled;
+  if (o.frictionExempt) s.frictionExempt = *o.frictionExempt;
+  if (o.speculative) s.speculative = *o.speculative;
+  if (o.restitution) s.restitution = *o.restitution;
+  if (o.restitutionThreshold) s.restitutionThreshold = *o.restitutionThreshold;
+  if (o.jacobians) s.jacobians = *o.jacobians == "stable" ? JacobianRefresh::Stable : JacobianRefresh::Joints;
+  if (o.contactHertz) s.contactHertz = *o.contactHertz;
+  if (o.contactDamping) s.contactDamping = *o.contactDamping;
+  if (o.jointHertz) s.jointHertz = *o.jointHertz;
+  if (o.jointDamping) s.jointDamping = *o.jointDamping;
+  if (o.pushOut) s.pushOut = *o.pushOut;
   return s;
 }
 

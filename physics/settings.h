@@ -14,11 +14,20 @@
 namespace substep {
 
 // The report's Algorithms 1 to 5 (section IV, listings in section VI).
-enum class Algorithm { A1 = 1, A2, A3, A4, A5 };
-const char* algorithmName(Algorithm a);       // "a1" .. "a5"
+// Soft is not the report's: Box2D v3's soft step in 3D, an extension to compare against
+// (physics/steppers/soft_step.cpp, docs/algorithms.md "The soft step").
+enum class Algorithm { A1 = 1, A2, A3, A4, A5, Soft };
+const char* algorithmName(Algorithm a);       // "a1" .. "a5", "soft"
 const char* algorithmTitle(Algorithm a);      // "essential, direct" ...
 std::optional<Algorithm> parseAlgorithm(const std::string& s);
-bool subSteps(Algorithm a);                   // A3, A4, A5
+bool subSteps(Algorithm a);                   // A3, A4, A5, Soft: they take n
+bool havokScaled(Algorithm a);                // A3, A4, A5: they take κ and τ
+
+// Which joint Jacobians A5 recomputes between sub-steps (IV.4.1).
+enum class JacobianRefresh {
+  Joints,  // every joint's, from the coordinates stepped by the summed rotation (an extension)
+  Stable,  // the report's: only 'stable' rows', while micro-iterating, next-frame predicted
+};
 
 struct SolverSettings {
   Algorithm algorithm = Algorithm::A2;
@@ -32,7 +41,21 @@ struct SolverSettings {
   bool warmStart = false;        // start each step from the previous step's impulses
   bool splitImpulse = false;     // correct contact penetration apart from the velocity solve
   bool blockSolve = false;       // solve 'stable' (unbounded) constraints as blocks (IV.2.2 item 2)
+  bool contactBlocks = false;    // solve a manifold's normal rows as one small LCP (an extension)
   double slop = 0.001;           // allowed penetration: the report's hi [m]
+  // Extensions on by default, each with the report's literal behaviour a switch away.
+  bool motorUnscaled = true;     // motors solved with κ = τ = 1 (off: κ, τ as on every row)
+  bool frictionExempt = true;    // friction rows keep β = 0 under A4/A5's bias update (off: updated)
+  bool speculative = true;       // points within a margin before touching, closing at full speed
+  bool restitution = true;       // bodies' restitution applied after the velocity solve
+  double restitutionThreshold = 1.0;  // approach speeds below this do not bounce [m/s]
+  JacobianRefresh jacobians = JacobianRefresh::Joints;  // A5 (IV.4.1)
+  // The soft step (Box2D v3): softness of contacts and joints, push-out cap.
+  double contactHertz = 30;      // [Hz]
+  double contactDamping = 10;    // damping ratio ζ
+  double jointHertz = 60;        // [Hz]
+  double jointDamping = 2;       // damping ratio ζ
+  double pushOut = 3;            // largest speed a soft contact pushes penetrating bodies apart [m/s]
   int directMaxRows = 1500;      // A1: largest MLCP it forms densely (rows)
 };
 
@@ -43,7 +66,11 @@ struct SolverOverrides {
   std::optional<int> substeps;
   std::optional<int> iterations;
   std::optional<double> omega, tolerance, kappa, tau, slop;
-  std::optional<bool> warmStart, blockSolve, splitImpulse;
+  std::optional<bool> warmStart, blockSolve, splitImpulse, contactBlocks;
+  std::optional<bool> motorUnscaled, frictionExempt, speculative, restitution;
+  std::optional<double> restitutionThreshold;
+  std::optional<std::string> jacobians;  // "joints" or "stable"
+  std::optional<double> contactHertz, contactDamping, jointHertz, jointDamping, pushOut;
   std::optional<std::string> preset;   // Havok's presets, e.g. "4-medium"
 
   // Later values win, field by field: commandLine.merged(comparePanel).

@@ -93,6 +93,7 @@ class World {
   StepContext ctx_;
   std::vector<std::pair<int, int>> pairs_;
   std::vector<double> reach_;  // per body: how far it can get this step, plus half the margin [m]
+  std::vector<Vec3> approachV_;  // per body: the velocity restitution measures approach speeds with
   StepReport report_;
   StageTimes total_;
 };

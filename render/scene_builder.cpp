@@ -252,8 +252,10 @@ std::string settingsLine(const SolverSettings& s) {
   // n and m as the report names them: sub-steps and (micro-)iterations; A1/A2 take one step.
   o += "  n=" + std::to_string(subSteps(s.algorithm) ? s.substeps : 1);
   if (s.algorithm != Algorithm::A1) o += "  m=" + std::to_string(s.iterations);
-  if (subSteps(s.algorithm))
+  if (havokScaled(s.algorithm))
     o += fmt("  κ=%g", s.kappa) + fmt("  τ=%g", s.tau);
+  else if (s.algorithm == Algorithm::Soft)
+    o += fmt("  %g Hz", s.contactHertz) + fmt(" ζ=%g", s.contactDamping);
   else if (s.algorithm == Algorithm::A2)
     o += fmt("  ω=%g", s.omega);
   if (s.warmStart) o += "  warm";
@@ -269,6 +271,7 @@ std::string shortSettingsLine(const SolverSettings& s) {
       o += " m=" + std::to_string(s.iterations);
       if (s.omega != 1.0) o += fmt(" ω=%g", s.omega);
       break;
+    case Algorithm::Soft: o += " n=" + std::to_string(s.substeps) + fmt(" %g Hz", s.contactHertz); break;
     default:
       o += " n=" + std::to_string(s.substeps) + " m=" + std::to_string(s.iterations) + fmt(" κ=%g", s.kappa) +
            fmt(" τ=%g", s.tau);

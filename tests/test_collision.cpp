@@ -173,7 +173,8 @@ TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
   uint32_t ids[4];
   for (int i = 0; i < 4; ++i) ids[i] = cache.manifolds()[0].points[i].id;
   cache.manifolds()[0].points[0].lambda = 1.5;
-  cache.manifolds()[0].frictionLambda[2] = 0.25;
+  cache.manifolds()[0].twistImpulse = 0.25;
+  cache.manifolds()[0].frictionImpulse = Vec3(0.5, 0, -0.5);
   // A small slide keeps every point; its impulse comes along.
   pose.p.x() += 0.005;
   cache.beginStep();
@@ -190,7 +191,8 @@ TEST(Manifold, PointsPersistAcrossStepsAndNewOnesGetNewIds) {
         }
       }
   EXPECT_EQ(kept, 4);
-  EXPECT_EQ(m.frictionLambda[2], 0.25);
+  EXPECT_EQ(m.twistImpulse, 0.25);
+  EXPECT_EQ(m.frictionImpulse, Vec3(0.5, 0, -0.5));
   // A jump of 30 cm: the same corners of the box, but elsewhere on the ground: all points are new.
   pose.p.x() += 0.3;
   cache.beginStep();

@@ -55,6 +55,65 @@ TEST_P(EveryAlgorithm, MotorReachesAndHoldsItsSpeed) {
   }
 }
 
+// Motors solved with κ = τ = 1 are an extension (motor_unscaled, on). With it off, the report's
+// κ and τ apply to the motor row as to every other: J̌(κv̌ + M̌⁻¹J̌ᵀλ) = τβ drives the wheel to τ/κ of
+// its speed under A3 and A4, and A5's refactoring gives the same.
+TEST(Motor, TheReportsLiteralKappaAndTauSlowIt) {
+  const Scene s = sceneFrom(R"({"gravity": [0, 0, 0], "bodies": [
+      {"name": "base", "static": true, "shape": {"type": "box", "half_extents": [0.1, 0.1, 0.1]}},
+      {"name": "wheel", "shape": {"type": "cylinder", "radius": 0.5, "half_height": 0.1}, "position": [0, 0, 2],
+       "orientation": [0.70710678, 0.70710678, 0, 0], "mass": 2}],
+    "joints": [{"type": "motor", "bodies": ["base", "wheel"], "anchor": [0, 0, 2], "axis": [0, 0, 1],
+       "motor": {"speed": 5, "max_torque": 0}}]})");
+  for (const Algorithm a : {Algorithm::A3, Algorithm::A4, Algorithm::A5}) {
+    for (const bool unscaled : {true, false}) {
+      SolverOverrides o;
+      o.algorithm = a;
+      o.kappa = 1.1;
+      o.tau = 0.6;
+      o.motorUnscaled = unscaled;
+      World w(s.model, resolve(o), s.initial);
+      for (int k = 0; k < 60; ++k) w.step();
+      const double spin = w.state().bodies[1].worldAngularVelocity().z();
+      std::printf("%s, motor %s: %.4f rad/s (target 5, tau/kappa of it %.4f)\n", algorithmName(a),
+                  unscaled ? "with kappa = tau = 1" : "with the report's kappa and tau", spin, 5 * 0.6 / 1.1);
+      EXPECT_NEAR(spin, unscaled ? 5.0 : 5 * 0.6 / 1.1, 1e-6) << algorithmName(a);
+    }
+  }
+}
+
+// The hinge's rows across its axis turn with body A (A's reference direction and the axis
+// crossed with it), so they change continuously as the axis turns; a basis computed from the
+// axis' world components switched where |a.x| crosses 1/√3, and the warm-started impulses of
+// those rows then pushed along other directions.
+TEST(Hinge, RowsAcrossTheAxisTurnWithTheBody) {
+  Joint j;
+  j.type = JointType::Hinge;
+  j.bodyA = 0;
+  j.bodyB = 1;
+  j.localAxisA = j.localAxisB = Vec3(0.57, 0.6, 0.56).normalized();
+  j.localRefA = j.localRefB = j.localAxisA.cross(Vec3::UnitZ()).normalized();
+  const Pose A, B;
+  Pose turned;
+  turned.q = Quat(Eigen::AngleAxisd(-0.05, Vec3::UnitZ()));  // a.x: 0.570 -> 0.600, across 1/√3
+  Row before[5], after[5];
+  formulateHinge(j, A, B, 1.0 / 60, before, false);
+  formulateHinge(j, turned, turned, 1.0 / 60, after, false);
+  for (int k = 3; k < 5; ++k) {
+    // In the world frame (J̌'s angular parts are in the body's): each row turned exactly as A did.
+    const Vec3 was = A.rotate(before[k].angA), now = turned.rotate(after[k].angA);
+    EXPECT_LT((now - turned.q * was).norm(), 1e-12) << "row " << k;
+  }
+  // A basis from the axis' world components would have jumped here: tangentBasis of the axis
+  // before and after the turn are 30 degrees and more apart.
+  Vec3 t1, t2, u1, u2;
+  tangentBasis(A.rotate(j.localAxisA), t1, t2);
+  tangentBasis(turned.rotate(j.localAxisA), u1, u2);
+  std::printf("hinge: a basis from the axis' components turns by %.1f degrees for a 2.9 degree turn\n",
+              std::acos(std::min(1.0, std::abs(t1.dot(u1)))) * 180 / M_PI);
+  EXPECT_LT(std::abs(t1.dot(u1)), 0.9);
+}
+
 // A hinged pendulum keeps its axis and its anchor and stays within its angle limits.
 TEST_P(EveryAlgorithm, HingeKeepsAxisAnchorAndLimits) {
   const Scene s = sceneFrom(R"({"bodies": [
@@ -162,7 +221,8 @@ TEST_P(EveryAlgorithm, StiffSpringKeepsItsLength) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Algorithms, EveryAlgorithm,
-                         ::testing::Values(Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5),
+                         ::testing::Values(Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5,
+                                           Algorithm::Soft),
                          algoName);
 
 // IV.2.2 item 2: a stable block solved as one 3x3 system is exact for its rows. With enough

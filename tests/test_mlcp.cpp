@@ -240,7 +240,7 @@ TEST(IterativeSolver, ConvergesTowardsTheDirectSolution) {
     std::vector<double> residuals, errors;
     for (int cap : {1, 4, 16, 64, 256, 1024, 4096}) {
       Problem q = p;  // fresh λ = 0 and velocities
-      for (int it = 0; it < cap; ++it) sweep(q.cs, q.v, q.w, 1.0, 1.0, 1.0, 1.0);
+      for (int it = 0; it < cap; ++it) sweep(q.cs, q.v, q.w, SweepScales{});
       std::vector<double> lam;
       for (const Row& r : q.cs.rows) lam.push_back(r.lambda);
       double err = 0;

@@ -95,7 +95,8 @@ void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, doub
   if (old)
     for (int k = 0; k < kMaxManifoldPoints; ++k)
       if (taken[k]) {
-        std::copy(old->frictionLambda, old->frictionLambda + 3, m.frictionLambda);
+        m.frictionImpulse = old->frictionImpulse;
+        m.twistImpulse = old->twistImpulse;
         break;
       }
   current_.push_back(m);

@@ -35,7 +35,11 @@ struct Manifold {
   double restitution = 0;      // e of the pair
   int count = 0;
   ManifoldPoint points[kMaxManifoldPoints];
-  double frictionLambda[3] = {0, 0, 0};  // the pair's friction impulses of the last step (t1, t2, twist)
+  // The pair's friction impulses of the last step: the tangential one as a vector in B's frame,
+  // so that the next step's tangents (whichever basis of the new normal) take it over by
+  // projection; the twist about the normal [N s, N m s].
+  Vec3 frictionImpulse = Vec3::Zero();
+  double twistImpulse = 0;
   Vec3 relP = Vec3::Zero();    // B's origin in A's frame when the narrowphase made these points
   Quat relQ = Quat::Identity();  // B's orientation relative to A then
   double reach = 0;            // the larger distance of a point of either body from its origin that

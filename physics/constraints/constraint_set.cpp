@@ -13,7 +13,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
                           double applyScale) {
   model_ = &model;
   slop_ = settings.slop;
-  block_ = settings.blockSolve;
+  stableBlocks_ = settings.blockSolve;
+  motorUnscaled_ = settings.motorUnscaled;
+  contactBlocks_ = settings.contactBlocks;
+  speculative_ = settings.speculative;
   rows.clear();
   units.clear();
   blocks.clear();
@@ -47,7 +50,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     // (limits, motors) are always on their own.
     for (int p = 0; p < layout.parts; ++p) {
       const JointPart& part = layout.part[p];
-      if (part.stable && block_ && part.size > 1) {
+      if (part.stable && stableBlocks_ && part.size > 1) {
         units.push_back(SolveUnit{ref.first + part.offset, part.size, SolveUnit::Stable, -1});
       } else {
         for (int i = 0; i < part.size; ++i) units.push_back(SolveUnit{ref.first + part.offset + i, 1});
@@ -77,10 +80,16 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       c.localB = p.localB;
       c.localN = p.localN;
       c.row = static_cast<int>(rows.size());
+      c.restitution = m.restitution;
       contacts.push_back(c);
       rows.emplace_back();
-      formulateContact(c, A, B, h, slop_, rows.back(), false);
-      rows.back().lambda = settings.warmStart ? p.lambda : 0.0;
+      Row& r = rows.back();
+      formulateContact(c, A, B, h, slop_, r, false);
+      r.lambda = settings.warmStart ? p.lambda : 0.0;
+      // Apart at the step's start (C > 0, β < 0): a speculative point. Without speculative points
+      // (the report has none) it stays in the manifold but holds nothing until it touches.
+      r.speculative = r.bias < 0 && speculative_;
+      if (r.bias < 0 && !speculative_) r.hi = r.lambda = 0;
       f.localA += p.localA / m.count;
       f.localB += p.localB / m.count;
       normalSum += p.localN;
@@ -88,9 +97,20 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     f.localN = normalSum.normalized();
     for (int k = 0; k < m.count; ++k) f.radius += (m.points[k].localA - f.localA).norm() / m.count;
     f.row = static_cast<int>(rows.size());
+    f.qB = B.q;
     rows.resize(rows.size() + 3);
-    formulateFriction(f, A, B, &rows[static_cast<size_t>(f.row)], false);
-    for (int k = 0; k < 3; ++k) rows[static_cast<size_t>(f.row + k)].lambda = settings.warmStart ? m.frictionLambda[k] : 0.0;
+    Row* fr = &rows[static_cast<size_t>(f.row)];
+    formulateFriction(f, A, B, fr, false);
+    if (settings.warmStart) {
+      // Last step's tangential impulse, a vector fixed in B, projected on this step's tangents:
+      // whichever basis the new normal gets, the impulse carries over.
+      const Vec3 P = B.rotate(m.frictionImpulse);
+      fr[0].lambda = P.dot(fr[0].linA);
+      fr[1].lambda = P.dot(fr[1].linA);
+      fr[2].lambda = m.twistImpulse;
+    }
+    if (!settings.frictionExempt)
+      for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
     frictions.push_back(f);
   }
   // Solve order: joints, then every contact's normal row, then the friction rows. With friction
@@ -101,7 +121,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // rocks itself apart (docs/algorithms.md).
   auto normalUnits = [&] {
     for (const FrictionDef& f : frictions) {
-      if (block_ && f.normalCount > 1) {
+      if (contactBlocks_ && f.normalCount > 1) {
         units.push_back(SolveUnit{f.firstNormal, f.normalCount, SolveUnit::Contact, -1});
       } else {
         for (int k = 0; k < f.normalCount; ++k) units.push_back(SolveUnit{f.firstNormal + k, 1});
@@ -131,8 +151,10 @@ void ConstraintSet::formulateJoint(const JointRef& ref, const std::vector<Pose>&
 void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale) {
   for (int i = firstRow; i < lastRow; ++i) {
     Row& r = rows[static_cast<size_t>(i)];
-    // A motor is solved exactly under every algorithm: κ does not scale it (docs/algorithms.md).
-    finishRow(r, mass[static_cast<size_t>(r.a)], mass[static_cast<size_t>(r.b)], r.velocityTarget ? 1.0 : applyScale);
+    // A motor is solved exactly under every algorithm: κ does not scale it (docs/algorithms.md),
+    // unless the report's literal κ on every row is asked for (motorUnscaled off).
+    finishRow(r, mass[static_cast<size_t>(r.a)], mass[static_cast<size_t>(r.b)],
+              r.velocityTarget && motorUnscaled_ ? 1.0 : applyScale);
   }
   for (SolveUnit& u : units) {
     if (u.kind == SolveUnit::Single || u.first < firstRow || u.first >= lastRow) continue;
@@ -163,20 +185,26 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
 
 void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h,
                                 Refresh what, double applyScale) {
-  const bool jacobianOnly = what == Refresh::JointJacobians;
+  const bool jacobianOnly = what == Refresh::JointJacobians;  // Joints: β too
   for (const JointRef& ref : joints) formulateJoint(ref, poses, h, jacobianOnly);
   if (what == Refresh::All) {
     for (const ContactDef& c : contacts) {
       Row& r = rows[static_cast<size_t>(c.row)];
+      const double hi = r.hi;
       formulateContact(c, poses[static_cast<size_t>(c.a)], poses[static_cast<size_t>(c.b)], h, slop_, r, false);
+      r.hi = hi;  // a point held inactive (no speculative points) stays so for the step
       r.bias -= r.split;  // the step's split-off position error stays with the position solve
     }
-    for (const FrictionDef& f : frictions)
-      formulateFriction(f, poses[static_cast<size_t>(f.a)], poses[static_cast<size_t>(f.b)],
-                        &rows[static_cast<size_t>(f.row)], false);
+    for (FrictionDef& f : frictions) {
+      f.qB = poses[static_cast<size_t>(f.b)].q;
+      Row* fr = &rows[static_cast<size_t>(f.row)];
+      const bool level = fr[0].velocityLevel;
+      formulateFriction(f, poses[static_cast<size_t>(f.a)], poses[static_cast<size_t>(f.b)], fr, false);
+      for (int k = 0; k < 3; ++k) fr[k].velocityLevel = level;
+    }
     finish(0, static_cast<int>(rows.size()), mass, applyScale);
   } else {
-    finish(0, contactFirstRow, mass, applyScale);
+    finish(0, contactFirstRow, mass, applyScale);  // joint rows only
   }
 }
 
@@ -188,9 +216,15 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
   size_t c = 0, f = 0;
   for (Manifold& m : manifolds) {
     for (int p = 0; p < m.count; ++p) m.points[p].lambda = rows[static_cast<size_t>(contacts[c++].row)].lambda;
-    for (int k = 0; k < 3; ++k) m.frictionLambda[k] = rows[static_cast<size_t>(frictions[f].row + k)].lambda;
+    const Row* fr = &rows[static_cast<size_t>(frictions[f].row)];
+    m.frictionImpulse = frictions[f].qB.conjugate() * (fr[0].lambda * fr[0].linA + fr[1].lambda * fr[1].linA);
+    m.twistImpulse = fr[2].lambda;
     ++f;
   }
+}
+
+void ConstraintSet::recordApproach(const Vec3* v, const Vec3* w) {
+  for (ContactDef& c : contacts) c.approach = rowVelocity(rows[static_cast<size_t>(c.row)], v, w);
 }
 
 double ConstraintSet::maxPenetration(const std::vector<Pose>& poses) const {

@@ -24,6 +24,7 @@ class ConstraintSet {
   enum class Refresh {
     All,             // A3 (proc3:15): J̌ and β of every constraint from the stepped coordinates
     JointJacobians,  // A4/A5 (IV.3.2): J̌ of the joints; biases follow the update rule; contacts held
+    Joints,          // the soft step: J̌ and β of the joints from the coordinates; contacts held
   };
 
   // Formulates everything at `poses` for time step h (the sub-step h/n under A3-A5). The rows'
@@ -33,8 +34,13 @@ class ConstraintSet {
              const std::vector<BodyMass>& mass, const SolverSettings& settings, double h, double applyScale);
   void reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h, Refresh what,
                    double applyScale);
+  // Recomputes M̌⁻¹J̌ᵀ, the effective masses and the blocks of the joint rows after their J̌
+  // changed (A5's stable-row prediction).
+  void refinishJoints(const std::vector<BodyMass>& mass, double applyScale) { finish(0, contactFirstRow, mass, applyScale); }
   // Keeps this step's impulses: in the manifolds (for warm starting and overlays) and per joint.
   void storeImpulses(std::vector<Manifold>& manifolds);
+  // Records each contact's normal velocity J̌v̌ at the step's start, for restitution.
+  void recordApproach(const Vec3* v, const Vec3* w);
 
   std::vector<Row> rows;
   std::vector<SolveUnit> units;
@@ -54,7 +60,7 @@ class ConstraintSet {
 
   const Model* model_ = nullptr;
   double slop_ = 0;
-  bool block_ = false;
+  bool stableBlocks_ = false, contactBlocks_ = false, speculative_ = true, motorUnscaled_ = true;
   std::vector<double> jointLambda_;  // per joint row, last step's impulses
   std::vector<int> jointLambdaFirst_;
 };

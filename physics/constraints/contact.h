@@ -28,6 +28,8 @@ struct ContactDef {
   Vec3 localB = Vec3::Zero();  // σ̌b [m]
   Vec3 localN = Vec3::UnitY(); // n in B's frame
   int row = 0;                 // its normal row
+  double restitution = 0;      // e of the pair
+  double approach = 0;         // J̌v̌ at the step's start, before ext: < 0 when closing [m/s]
 };
 
 struct FrictionDef {
@@ -39,6 +41,7 @@ struct FrictionDef {
   double radius = 0;           // mean distance of the points from the centroid [m]
   int row = 0;                 // its three rows: t1, t2, twist
   int firstNormal = 0, normalCount = 0;  // the manifold's normal rows (contiguous)
+  Quat qB = Quat::Identity();  // B's orientation when formulated: warm-start impulses are kept in B's frame
 };
 
 // (pa - pb)·n at the given poses: negative when penetrating [m].

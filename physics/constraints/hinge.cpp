@@ -2,7 +2,8 @@
 // optionally the angle about it is limited and driven by a motor.
 //
 // Anchors: the ball joint's three rows (ball.cpp).
-// Axes: aA = R_A âA, aB = R_B âB. Two rows on b, c perpendicular to aA:
+// Axes: aA = R_A âA, aB = R_B âB. Two rows on b = R_A r̂A (A's reference direction, across the
+// axis) and c = aA × b:
 //   Ċ_u = u·(ωA - ωB)                  J̌ = (0, R_A⁻¹u, 0, -R_B⁻¹u)
 //   β_u = u·(aA × aB)/h                B turns by aB × aA (about b and c) to bring aB back to aA
 // Angle: θ = atan2(aA·(rA × rB), rA·rB), rA, rB the reference directions; θ̇ = aA·(ωB - ωA).
@@ -26,8 +27,10 @@ double hingeAngle(const Joint& j, const Pose& A, const Pose& B) {
 void formulateHinge(const Joint& j, const Pose& A, const Pose& B, double h, Row* rows, bool jacobianOnly) {
   pointRows(j, A, B, h, rows, jacobianOnly);
   const Vec3 aA = A.rotate(j.localAxisA), aB = B.rotate(j.localAxisB);
-  Vec3 b, c;
-  tangentBasis(aA, b, c);
+  // b, c across the axis, fixed in A: they turn with A, so warm-started impulses keep their
+  // directions from one (sub-)step to the next (a basis computed from aA's world components
+  // jumps where they cross a threshold).
+  const Vec3 b = A.rotate(j.localRefA), c = aA.cross(b);
   const Vec3 e = aA.cross(aB);
   angleRow(rows[3], j.bodyA, j.bodyB, A, B, b);
   angleRow(rows[4], j.bodyA, j.bodyB, A, B, c);

@@ -31,7 +31,11 @@ struct Row {
   int normalCount = 0;                                 // ... and how many (contiguous) rows bound them
   bool velocityLevel = false;                          // friction, motors: no position C behind β, so the
                                                        // bias update rule (proc4:16) does not apply
-  bool velocityTarget = false;                         // motor: β is a target velocity, solved with κ = τ = 1
+  bool velocityTarget = false;                         // motor: β is a target velocity (solved with κ = τ = 1
+                                                       // unless SolverSettings::motorUnscaled is off)
+  bool speculative = false;                            // contact normal apart at the step's start (C > 0): while
+                                                       // β < 0 it closes the gap at full speed, not τ of it
+  bool pushed = false;                                 // λ was positive during this step (restitution)
   double split = 0;                                    // split impulse: the part of β moved to the position solve
   double lambda = 0;                                   // accumulated impulse [N s or N m s]
 };

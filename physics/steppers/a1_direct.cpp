@@ -37,8 +37,10 @@ class DirectStepper final : public Stepper {
     for (int i = 0; i < n; ++i) {
       Row& r = cs.rows[static_cast<size_t>(i)];
       r.lambda = lambda_[static_cast<size_t>(i)];
+      r.pushed = r.lambda > 0;
       applyImpulse(r, r.lambda, c.v.data(), c.w.data());  // v̌' = v̌ + ext + δ
     }
+    applyRestitution(c, c.v.data(), c.w.data(), 1.0);
   }
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesEssential(c); }

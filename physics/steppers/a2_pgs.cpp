@@ -24,10 +24,11 @@ class PgsStepper final : public Stepper {
     c.stats.rows = static_cast<int>(cs.rows.size());
     if (cs.rows.empty()) return;
     for (int it = 1; it <= c.settings->iterations; ++it) {
-      c.stats.residual = sweep(cs, c.v, c.w, omega, omega, omega, omega);
+      c.stats.residual = sweep(cs, c.v, c.w, SweepScales::psor(omega));
       c.stats.iterations = it;
       if (c.stats.residual <= c.settings->tolerance) break;
     }
+    applyRestitution(c, c.v.data(), c.w.data(), 1.0);
     solvePositionErrors(c, c.stats.iterations, 1.0);
   }
 

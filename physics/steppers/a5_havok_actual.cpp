@@ -11,8 +11,14 @@
 //   proc5:16  šʲ⁺¹ = šʲ + (τ/κ) v̌ʲ
 //   proc5:17-18  ŵʲ⁺¹ = v̌ʲ + ext + šʲ⁺¹   (only between sub-steps)
 //   proc5:20-22  as proc4:18-20 (summed rotations)
-// Velocity-level rows undo the baked-in update (IV.3.1.4): their bias becomes β + J̌š, so they
-// solve J̌v̌ = β: motors their target speed (with κ = 1), friction rows 0 (with κ).
+// Rows whose bias is not the baked (τ/κ)β¹ take it back each sub-step (IV.3.1.4):
+//   velocity-level rows   β_row = c·target + J̌šʲ   (motors: c = 1, κ = 1; friction: target 0)
+//   speculative contacts  β_row = f(βʲ)/κ + J̌šʲ,  βʲ = β¹ - J̌Σ_{k<j}v̌ᵏ, f(β) = β for β < 0 (closing
+//                         a gap, not scaled by τ), τβ once penetrating: A4's row exactly.
+// Joint Jacobians between sub-steps: every joint's (JacobianRefresh::Joints, an extension), or the
+// report's IV.4.1: only the 'stable' rows', recomputed while micro-iterating at the coordinates
+// the running velocity predicts for the sub-step's end (JacobianRefresh::Stable).
+#include "physics/constraints/joints.h"
 #include "physics/steppers/stepper.h"
 
 namespace substep {
@@ -23,21 +29,25 @@ class HavokActualStepper final : public Stepper {
  public:
   void stepVelocities(StepContext& c) override {
     ConstraintSet& cs = *c.constraints;
-    const int n = c.n(), m = c.settings->iterations;
-    const double dt = c.h() / n, kappa = c.settings->kappa, tau = c.settings->tau;
+    const SolverSettings& st = *c.settings;
+    const int n = c.n(), m = st.iterations;
+    const double dt = c.h() / n, kappa = st.kappa, tau = st.tau;
     const double ratio = tau / kappa;
     const size_t nb = c.bodies();
+    const bool stableOnly = st.jacobians == JacobianRefresh::Stable && !cs.joints.empty();
     c.stats = StepStats{};
     c.stats.rows = static_cast<int>(cs.rows.size());
 
     splitPositionErrors(c);
-    // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Velocity-level
-    // rows (friction: 0, motors: their speed) keep their β and take back the SumVelocity term.
-    target_.clear();
+    // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
+    // their bias back each sub-step are listed with what they need.
+    refresh_.clear();
     for (size_t k = 0; k < cs.rows.size(); ++k) {
       Row& r = cs.rows[k];
-      if (r.velocityLevel) target_.emplace_back(k, r.velocityTarget ? r.bias : 0.0);
-      if (r.velocityTarget) continue;
+      const bool exact = r.velocityTarget && st.motorUnscaled;  // solved with κ = τ = 1
+      if (r.velocityLevel) refresh_.push_back({k, Refresh::Target, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
+      if (r.speculative) refresh_.push_back({k, Refresh::Speculative, r.bias});
+      if (exact) continue;
       r.bias *= ratio;
       if (r.normalRow < 0) {  // friction bounds are μ times the normal's λ̄ already
         r.lo /= kappa;
@@ -47,15 +57,27 @@ class HavokActualStepper final : public Stepper {
     }
     sumV_.assign(nb, Vec3::Zero());
     sumW_.assign(nb, Vec3::Zero());
+    rawV_.assign(nb, Vec3::Zero());
+    rawW_.assign(nb, Vec3::Zero());
     beginSubSteps(c);
+    if (stableOnly) collectStableRows(c);
     addExternal(c, dt);  // ŵ¹ = v̌⁰ + ext (š¹ = 0)
     for (int j = 0; j < n; ++j) {
       startSubStepImpulses(c, j);
-      for (const auto& [k, speed] : target_) {
-        Row& r = cs.rows[k];
-        r.bias = speed + rowVelocity(r, sumV_.data(), sumW_.data());
+      for (const Refreshed& f : refresh_) {
+        Row& r = cs.rows[f.row];
+        const double shift = rowVelocity(r, sumV_.data(), sumW_.data());  // J̌šʲ
+        if (f.kind == Refresh::Target) {
+          r.bias = f.base + shift;
+        } else {
+          const double beta = f.base - rowVelocity(r, rawV_.data(), rawW_.data());  // βʲ by the update rule
+          r.bias = (beta < 0 ? beta : tau * beta) / kappa + shift;
+        }
       }
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = sweep(cs, c.v, c.w, 1, 1, 1, 1);
+      for (int i = 0; i < m && !cs.rows.empty(); ++i) {
+        if (stableOnly) predictStableRows(c);
+        c.stats.residual = sweep(cs, c.v, c.w, SweepScales{});
+      }
       // v̌ʲ = ŵʲ - šʲ, recorded for s4; then šʲ⁺¹ and ŵʲ⁺¹.
       for (size_t i = 0; i < nb; ++i) {
         const Vec3 v = c.v[i] - sumV_[i], w = c.w[i] - sumW_[i];
@@ -63,6 +85,8 @@ class HavokActualStepper final : public Stepper {
         c.subW[static_cast<size_t>(j) * nb + i] = w;
         sumV_[i] += ratio * v;
         sumW_[i] += ratio * w;
+        rawV_[i] += v;
+        rawW_[i] += w;
       }
       if (j + 1 < n) {
         const Vec3 ext = dt * c.model->gravity;
@@ -73,21 +97,80 @@ class HavokActualStepper final : public Stepper {
         }
         if (!cs.joints.empty()) {
           advanceSubPoses(c, j, RotationRule::Summed);
-          cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Refresh::JointJacobians, kappa);
+          if (!stableOnly) cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Refresh::JointJacobians, kappa);
         }
       }
     }
     c.stats.iterations = n * m;
-    solvePositionErrors(c, n * m, kappa);  // rows apply κM̌⁻¹J̌ᵀ; the split is of β, not β̄
     for (Row& r : cs.rows)
-      if (!r.velocityTarget) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
+      if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
+    const size_t last = static_cast<size_t>(n - 1) * nb;
+    applyRestitution(c, &c.subV[last], &c.subW[last], kappa);
+    solvePositionErrors(c, n * m, kappa);  // rows apply κM̌⁻¹J̌ᵀ; the split is of β, not β̄
   }
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
 
  private:
-  std::vector<std::pair<size_t, double>> target_;  // velocity-level rows and their β (motors: target speed)
-  std::vector<Vec3> sumV_, sumW_;                   // 'SumVelocity' š, linear and angular
+  enum class Refresh { Target, Speculative };
+  struct Refreshed {
+    size_t row;
+    Refresh kind;
+    double base;  // Target: c·target; Speculative: β¹
+  };
+
+  // The 'stable' parts of every joint (joints.h: unbounded rows), for JacobianRefresh::Stable.
+  void collectStableRows(const StepContext& c) {
+    stable_.clear();
+    for (const ConstraintSet::JointRef& ref : c.constraints->joints) {
+      const JointLayout layout = jointLayout(c.model->joints[static_cast<size_t>(ref.joint)]);
+      for (int p = 0; p < layout.parts; ++p)
+        if (layout.part[p].stable) stable_.push_back({&ref, layout.part[p].offset, layout.part[p].size});
+    }
+  }
+
+  // The 'next frame approximation' (IV.2.2, IV.3.2): stable rows' J̌ at the coordinates the
+  // running velocity v̂ = ŵ - šʲ predicts for the end of sub-step j, from those the recorded
+  // sub-steps reached (summed rotations, as s4 steps them). Their biases stay β̄ (IV.4.1).
+  void predictStableRows(StepContext& c) {
+    ConstraintSet& cs = *c.constraints;
+    const double dt = c.h() / c.n();
+    const size_t nb = c.bodies();
+    predicted_.resize(nb);
+    for (size_t i = 0; i < nb; ++i) {
+      const Pose& at = c.subPoses[i];  // at t + j h/n (beginSubSteps, advanceSubPoses)
+      if (c.model->bodies[i].isStatic) {
+        predicted_[i] = at;
+        continue;
+      }
+      const Vec3 v = c.v[i] - sumV_[i], w = c.w[i] - sumW_[i];
+      predicted_[i].p = at.p + dt * v;
+      predicted_[i].q = (at.q * Rq(dt * w)).normalized();
+    }
+    for (const StableRows& s : stable_) {
+      const Joint& joint = c.model->joints[static_cast<size_t>(s.ref->joint)];
+      scratch_.assign(static_cast<size_t>(s.ref->count), Row{});
+      formulateJoint(joint, predicted_[static_cast<size_t>(joint.bodyA)], predicted_[static_cast<size_t>(joint.bodyB)],
+                     dt, scratch_.data(), true);
+      for (int k = 0; k < s.size; ++k) {
+        Row& r = cs.rows[static_cast<size_t>(s.ref->first + s.offset + k)];
+        const Row& fresh = scratch_[static_cast<size_t>(s.offset + k)];
+        r.linA = fresh.linA, r.angA = fresh.angA, r.linB = fresh.linB, r.angB = fresh.angB;
+      }
+    }
+    cs.refinishJoints(c.mass, c.settings->kappa);
+  }
+
+  struct StableRows {
+    const ConstraintSet::JointRef* ref;
+    int offset, size;
+  };
+  std::vector<Refreshed> refresh_;
+  std::vector<Vec3> sumV_, sumW_;  // 'SumVelocity' š, linear and angular
+  std::vector<Vec3> rawV_, rawW_;  // Σ_{k<j} v̌ᵏ unscaled: speculative rows' βʲ
+  std::vector<StableRows> stable_;
+  std::vector<Pose> predicted_;
+  std::vector<Row> scratch_;
 };
 
 }  // namespace

@@ -9,6 +9,7 @@ std::unique_ptr<Stepper> makePgsStepper();
 std::unique_ptr<Stepper> makeHavokConceptualStepper();
 std::unique_ptr<Stepper> makeHavokApproximativeStepper();
 std::unique_ptr<Stepper> makeHavokActualStepper();
+std::unique_ptr<Stepper> makeSoftStepper();
 
 std::unique_ptr<Stepper> makeStepper(Algorithm a) {
   switch (a) {
@@ -17,6 +18,7 @@ std::unique_ptr<Stepper> makeStepper(Algorithm a) {
     case Algorithm::A3: return makeHavokConceptualStepper();
     case Algorithm::A4: return makeHavokApproximativeStepper();
     case Algorithm::A5: return makeHavokActualStepper();
+    case Algorithm::Soft: return makeSoftStepper();
   }
   throw std::invalid_argument("unknown algorithm");
 }

@@ -107,8 +107,12 @@ void solveContactBlock(const SolveUnit& u, BlockData& d, Row* rows, const double
 
 }  // namespace
 
-double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, double cBias, double cVel,
-             double cBiasTarget, double cVelTarget) {
+SweepScales SweepScales::havok(const SolverSettings& s) {
+  const double bt = s.motorUnscaled ? 1 : s.tau, vt = s.motorUnscaled ? 1 : s.kappa;
+  return {s.tau, s.kappa, bt, vt, 1};
+}
+
+double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, const SweepScales& k) {
   Row* rows = cs.rows.data();
   Vec3* v = vv.data();
   Vec3* w = ww.data();
@@ -116,30 +120,17 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, do
   for (const SolveUnit& u : cs.units) {
     if (u.kind == SolveUnit::Single) {
       Row& r = rows[u.first];
-      const double cb = r.velocityTarget ? cBiasTarget : cBias;
-      const double cv = r.velocityTarget ? cVelTarget : cVel;
-      double dl = r.effMass * (cb * r.bias - cv * rowVelocity(r, v, w));
-      double lo = r.lo, hi = r.hi;
-      if (r.normalRow >= 0) {
-        const double ln = normalImpulse(r, rows);
-        lo *= ln;
-        hi *= ln;
-      }
-      const double next = std::clamp(r.lambda + dl, lo, hi);
-      dl = next - r.lambda;
-      r.lambda = next;
-      if (dl != 0) {
-        applyImpulse(r, dl, v, w);
-        if (r.effMass > 0) change = std::max(change, std::abs(dl) / r.effMass);
-      }
+      const double cb = r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
+      const double cv = r.velocityTarget ? k.velTarget : k.vel;
+      change = std::max(change, accumulate(r, r.effMass * (cb * r.bias - cv * rowVelocity(r, v, w)), rows, v, w));
       continue;
     }
     // Blocks: b = cBias β - cVel J̌v̌ for each of their rows.
     double b[4], dl[4];
     for (int i = 0; i < u.size; ++i) {
       const Row& r = rows[u.first + i];
-      const double cb = r.velocityTarget ? cBiasTarget : cBias;
-      const double cv = r.velocityTarget ? cVelTarget : cVel;
+      const double cb = r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
+      const double cv = r.velocityTarget ? k.velTarget : k.vel;
       b[i] = cb * r.bias - cv * rowVelocity(r, v, w);
     }
     BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
@@ -156,6 +147,7 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, do
       Row& r = rows[u.first + i];
       if (dl[i] == 0) continue;
       r.lambda += dl[i];
+      r.pushed = r.pushed || r.lambda > 0;
       applyImpulse(r, dl[i], v, w);
       if (r.effMass > 0) change = std::max(change, std::abs(dl[i]) / r.effMass);
     }
@@ -212,7 +204,8 @@ void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vect
 void stepVelocitiesScaled(StepContext& c, const std::function<void(int j)>& between) {
   ConstraintSet& cs = *c.constraints;
   const int n = c.n(), m = c.settings->iterations;
-  const double dt = c.h() / n, kappa = c.settings->kappa, tau = c.settings->tau;
+  const double dt = c.h() / n;
+  const SweepScales scales = SweepScales::havok(*c.settings);
   c.stats = StepStats{};
   c.stats.rows = static_cast<int>(cs.rows.size());
   splitPositionErrors(c);
@@ -220,12 +213,35 @@ void stepVelocitiesScaled(StepContext& c, const std::function<void(int j)>& betw
   for (int j = 0; j < n; ++j) {
     addExternal(c, dt);
     startSubStepImpulses(c, j);
-    for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = sweep(cs, c.v, c.w, tau, kappa, 1, 1);
+    for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = sweep(cs, c.v, c.w, scales);
     recordSubStep(c, j);
     if (j + 1 < n) between(j);
   }
   c.stats.iterations = n * m;
+  const size_t last = static_cast<size_t>(n - 1) * c.bodies();
+  applyRestitution(c, &c.subV[last], &c.subW[last], 1.0);
   solvePositionErrors(c, n * m, 1.0);
+}
+
+void applyRestitution(StepContext& c, const Vec3* v, const Vec3* w, double applyScale) {
+  c.bounced = false;
+  if (!c.settings->restitution) return;
+  ConstraintSet& cs = *c.constraints;
+  const double threshold = c.settings->restitutionThreshold;
+  for (const ContactDef& contact : cs.contacts) {
+    Row& r = cs.rows[static_cast<size_t>(contact.row)];
+    if (contact.restitution == 0 || contact.approach > -threshold || !r.pushed) continue;
+    if (!c.bounced) {
+      c.endV.assign(v, v + c.bodies());
+      c.endW.assign(w, w + c.bodies());
+      c.bounced = true;
+    }
+    const double target = -contact.restitution * contact.approach;  // separating at e times the approach
+    const double next = std::max(0.0, r.lambda + r.effMass * (target - rowVelocity(r, c.endV.data(), c.endW.data())));
+    const double dl = next - r.lambda;
+    r.lambda = next;
+    if (dl != 0) applyImpulse(r, dl / applyScale, c.endV.data(), c.endW.data());
+  }
 }
 
 void splitPositionErrors(StepContext& c) {
@@ -277,11 +293,11 @@ void stepCoordinatesEssential(StepContext& c) {
   for (size_t i = 0; i < c.bodies(); ++i) {
     if (c.model->bodies[i].isStatic) continue;
     BodyState& b = c.state->bodies[i];
-    b.v = c.v[i];
-    b.w = c.w[i];
-    b.x += h * (b.v + c.pseudoV[i]);
-    const Vec3 omegaWorld = b.q * (b.w + c.pseudoW[i]);
+    b.x += h * (c.v[i] + c.pseudoV[i]);
+    const Vec3 omegaWorld = b.q * (c.w[i] + c.pseudoW[i]);
     b.q = (Rq(h * omegaWorld) * b.q).normalized();
+    b.v = endVelocity(c, i, c.v[i]);
+    b.w = endAngularVelocity(c, i, c.w[i]);
   }
 }
 
@@ -297,8 +313,8 @@ void stepCoordinatesSubStepped(StepContext& c, RotationRule rule) {
     b.x += sum + c.h() * c.pseudoV[i];
     b.q = stepRotation(b.q, &c.subW[i], nb, n, dt, rule);
     if (!c.pseudoW[i].isZero()) b.q = (b.q * Rq(c.h() * c.pseudoW[i])).normalized();
-    b.v = c.subV[static_cast<size_t>(n - 1) * nb + i];
-    b.w = c.subW[static_cast<size_t>(n - 1) * nb + i];
+    b.v = endVelocity(c, i, c.subV[static_cast<size_t>(n - 1) * nb + i]);
+    b.w = endAngularVelocity(c, i, c.subW[static_cast<size_t>(n - 1) * nb + i]);
   }
 }
 

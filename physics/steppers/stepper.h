@@ -2,6 +2,7 @@
 //   a1_direct.cpp          Algorithm 1, essential stepping with a direct MLCP solve
 //   a2_pgs.cpp             Algorithm 2, essential stepping, iterative (projected Gauss-Seidel, SOR)
 //   a3_havok_conceptual.cpp, a4_havok_approximative.cpp, a5_havok_actual.cpp: sub-stepping
+//   soft_step.cpp          not the report's: Box2D v3's soft step, an extension to compare against
 #pragma once
 
 #include "physics/constraints/constraint_set.h"
@@ -9,6 +10,8 @@
 #include "physics/settings.h"
 #include "physics/state.h"
 
+#include <algorithm>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -40,6 +43,10 @@ struct StepContext {
   // Split impulse: pseudo-velocities that move the coordinates in s4 without being momentum.
   std::vector<Vec3> pseudoV, pseudoW;
   std::vector<double> pseudoLambda;  // per contact point
+  // Restitution changes the velocity the step ends with, not the one its coordinates were
+  // stepped with (as Box2D applies it after the sub-steps): when set, s4 takes these as v̌'.
+  std::vector<Vec3> endV, endW;
+  bool bounced = false;
   StepStats stats;
 
   double h() const { return settings->dt; }
@@ -65,13 +72,52 @@ void addExternal(StepContext& c, double dt);
 // Applies every row's current λ to the velocities (warm starting): v̌ += M̌⁻¹J̌ᵀλ.
 void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w);
 
+// The factors of one sweep's row update  Δλ = m_eff (cBias β - cVel J̌ v̌):
+// (ω, ω) for A2's PSOR, (τ, κ) for A3/A4, (1, 1) for A5 (factors baked in). Motors (velocity
+// targets) take (biasTarget, velTarget): 1 unless the report's literal κ, τ on every row is
+// asked for. A speculative contact closing its gap (β < 0) takes biasSpeculative: A2 ω, A3/A4 1
+// (closing a gap is not an error correction, τ does not scale it), A5 1 (its bias is refreshed).
+struct SweepScales {
+  double bias = 1, vel = 1, biasTarget = 1, velTarget = 1, biasSpeculative = 1;
+  static SweepScales psor(double omega) { return {omega, omega, omega, omega, omega}; }
+  static SweepScales havok(const SolverSettings& s);  // A3/A4
+};
+
+// Adds dl to a row's λ within its bounds (friction: μ times its normals' current Σλ), applies what
+// was added to the velocities and returns that velocity change |Δλ| / m_eff [m/s or rad/s].
+inline double accumulate(Row& r, double dl, const Row* rows, Vec3* v, Vec3* w) {
+  double lo = r.lo, hi = r.hi;
+  if (r.normalRow >= 0) {
+    const double ln = normalImpulse(r, rows);
+    lo *= ln;
+    hi *= ln;
+  }
+  const double next = std::clamp(r.lambda + dl, lo, hi);
+  dl = next - r.lambda;
+  r.lambda = next;
+  r.pushed = r.pushed || next > 0;
+  if (dl == 0) return 0;
+  applyImpulse(r, dl, v, w);
+  return r.effMass > 0 ? std::abs(dl) / r.effMass : 0;
+}
+
 // One Gauss-Seidel sweep over all solve units. For each unit
 //   Δλ = m_eff (cBias β - cVel J̌ v̌),  λ <- proj(λ + Δλ),  v̌ += M̌⁻¹J̌ᵀ Δλ
-// with (cBias, cVel) = (ω, ω) for A2's PSOR, (τ, κ) for A3/A4, (1, 1) for A5 (factors baked in).
-// Rows with a velocity target (motors) use (cBiasTarget, cVelTarget). Returns the largest
-// velocity change of a row, |Δλ| / m_eff [m/s or rad/s].
-double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, double cBias, double cVel,
-             double cBiasTarget, double cVelTarget);
+// Returns the largest velocity change of a row, |Δλ| / m_eff [m/s or rad/s].
+double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k);
+
+// Restitution (an extension: the report has none), after the velocity solve as Box2D does it:
+// every contact point that was closing faster than the threshold at the step's start and pushed
+// during the step gets the impulse that makes it separate at e times that speed (λ >= 0 still).
+// v, w: the velocities the step ends with (A3-A5: the last sub-step's), copied into c.endV/endW
+// when a point bounces, so that the coordinates are stepped without it (the body reaches the
+// surface this step and leaves it the next). applyScale undoes the rows' scaled M̌⁻¹J̌ᵀ (A5's κ).
+void applyRestitution(StepContext& c, const Vec3* v, const Vec3* w, double applyScale);
+// The velocity the step ends with: c.endV if restitution set it, else `v`.
+inline const Vec3& endVelocity(const StepContext& c, size_t i, const Vec3& v) { return c.bounced ? c.endV[i] : v; }
+inline const Vec3& endAngularVelocity(const StepContext& c, size_t i, const Vec3& w) {
+  return c.bounced ? c.endW[i] : w;
+}
 
 // How sub-step rotations combine into the step's orientation change.
 enum class RotationRule {

@@ -29,7 +29,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace substep;
   const std::string text(reinterpret_cast<const char*>(data), size);
   SceneLimits lim;
-  lim.maxBodies = 300;  // the cap itself is tested elsewhere; here inputs stay quick to step
+  lim.maxBodies = 64;  // the cap itself is tested elsewhere; here inputs stay quick to step
   Scene scene;
   try {
     // Mesh paths resolve as for the shipped scenes (../meshes/gem.obj).

@@ -1,0 +1,274 @@
+// Contacts beyond the report's normal row: restitution, speculative points at every τ, friction
+// impulses carried across a change of tangent basis, and the options that select the report's
+// literal behaviour (contact blocks off, friction in the bias update).
+#include "physics/scene_file.h"
+#include "physics/world.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+using namespace substep;
+
+namespace {
+
+Scene sceneFrom(const std::string& json) { return parseScene(json, "<test>", "."); }
+
+SolverSettings settingsFor(Algorithm a, SolverOverrides o = {}) {
+  o.algorithm = a;
+  return resolve(o);
+}
+
+class EveryAlgorithm : public ::testing::TestWithParam<Algorithm> {};
+std::string algoName(const ::testing::TestParamInfo<Algorithm>& i) { return algorithmName(i.param); }
+
+// A ball of radius 0.2 m dropped from 1 m (its bottom 1 m above the ground), restitution e on both.
+Scene bouncingBall(double e) {
+  return sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0],
+       "restitution": )" + std::to_string(e) + R"(},
+      {"name": "ball", "shape": {"type": "sphere", "radius": 0.2}, "position": [0, 1.2, 0], "restitution": )" +
+                   std::to_string(e) + "}]}");
+}
+
+// Height of the ball's bottom at the top of its first rebound, over 1.5 s; -1 if it never rose.
+double reboundHeight(const Scene& s, const SolverSettings& st) {
+  World w(s.model, st, s.initial);
+  bool rising = false;
+  double apex = -1;
+  for (int k = 0; k * st.dt < 1.5; ++k) {
+    EXPECT_TRUE(w.step().finite);
+    const BodyState& b = w.state().bodies[1];
+    if (b.v.y() > 0) rising = true;
+    if (rising) apex = std::max(apex, b.x.y() - 0.2);
+    if (rising && b.v.y() < 0) break;
+  }
+  return apex;
+}
+
+}  // namespace
+
+// Restitution (an extension: the report has none): a ball dropped from 1 m rebounds to e² of it.
+// Measured at h = 1/60 (e = 0.5, e² = 0.25 m): A1 and A2 0.229 m (their one step of h loses
+// g h v on the way up), A3-A5 and soft 0.243 m; at h = 1/240 all within 3 %. Below the threshold
+// (1 m/s) nothing bounces, and --no-restitution turns it off.
+TEST_P(EveryAlgorithm, BallReboundsToESquaredOfItsHeight) {
+  const Scene s = bouncingBall(0.5);
+  const double coarse = reboundHeight(s, settingsFor(GetParam()));
+  SolverOverrides fine;
+  fine.dt = 1.0 / 240;
+  const double small = reboundHeight(s, settingsFor(GetParam(), fine));
+  std::printf("%s: rebound %.4f m at h = 1/60, %.4f m at 1/240 (e² h = 0.25 m)\n", algorithmName(GetParam()), coarse,
+              small);
+  EXPECT_NEAR(coarse, 0.25, 0.1 * 0.25);
+  EXPECT_NEAR(small, 0.25, 0.03 * 0.25);
+  SolverOverrides off;
+  off.restitution = false;
+  EXPECT_LT(reboundHeight(s, settingsFor(GetParam(), off)), 0.002);
+  SolverOverrides high;
+  high.restitutionThreshold = 5;  // the ball lands at 4.4 m/s
+  EXPECT_LT(reboundHeight(s, settingsFor(GetParam(), high)), 0.002);
+}
+
+// Speculative points close a gap at full speed, not τ of it: five boxes dropped 0.3 m apart onto
+// each other come to rest touching (each gap within the slop, 1 mm), at τ = 0 as at Havok's 0.6.
+// Before, at τ = 0 they stopped 3 to 9 mm above each other (docs/algorithms.md).
+TEST_P(EveryAlgorithm, BoxesDroppedOntoEachOtherRestTouching) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]}],
+    "generators": [{"type": "stack", "count": 5, "half_extents": [0.5, 0.25, 0.5], "gap": 0.3, "position": [0, 0.3, 0]}]})");
+  std::vector<SolverOverrides> variants(1);
+  if (havokScaled(GetParam())) {
+    // τ = 0 has no position feedback at all: the impacts' compressions that one sweep per
+    // sub-step leaves are never corrected, and cold the stack sinks (the bottom box 8 cm into the
+    // ground after 3 s); warm started, as pyramid.json runs it, it holds.
+    variants.assign(3, SolverOverrides{});
+    variants[0].tau = 0;
+    variants[0].kappa = 0.85;
+    variants[0].warmStart = true;
+    variants[1].tau = 0.3;
+    variants[2].tau = 0.6;
+    for (auto& v : variants) v.contactBlocks = true;  // without them one sweep rocks the boxes (below)
+  }  for (const SolverOverrides& o : variants) {
+    World w(s.model, settingsFor(GetParam(), o), s.initial);
+    for (int k = 0; k < 180; ++k) ASSERT_TRUE(w.step().finite);
+    double worstGap = 0, worstDepth = 0;
+    for (int i = 1; i <= 5; ++i) {
+      const double below = i == 1 ? 0.0 : w.state().bodies[static_cast<size_t>(i - 1)].x.y() + 0.25;
+      const double gap = w.state().bodies[static_cast<size_t>(i)].x.y() - 0.25 - below;
+      worstGap = std::max(worstGap, gap);
+      worstDepth = std::max(worstDepth, -gap);
+    }
+    std::printf("%s tau %s: largest gap %.2f mm, deepest %.2f mm\n", algorithmName(GetParam()),
+                o.tau ? std::to_string(*o.tau).c_str() : "-", worstGap * 1e3, worstDepth * 1e3);
+    EXPECT_LT(worstGap, 0.0005);  // touching: no box held above the next by its speculative point
+    // ... and within about the slop; soft contacts are springs that the weight above compresses.
+    EXPECT_LT(worstDepth, GetParam() == Algorithm::Soft ? 0.005 : 0.004);
+  }
+}
+
+// Landing fast on speculative points: a box at 6.6 m/s neither sinks in nor bounces.
+TEST_P(EveryAlgorithm, FastImpactNeitherSinksNorBounces) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]},
+      {"name": "box", "shape": {"type": "box", "half_extents": [0.3, 0.2, 0.25]}, "position": [0, 2.4, 0]}]})");
+  SolverOverrides o;
+  if (havokScaled(GetParam())) o.contactBlocks = true;
+  World w(s.model, settingsFor(GetParam(), o), s.initial);
+  double lowest = 1e9, highestAfter = -1e9, maxPen = 0;
+  bool landed = false;
+  for (int k = 0; k < 120; ++k) {
+    w.step();
+    const double y = w.state().bodies[1].x.y();
+    maxPen = std::max(maxPen, w.maxPenetration());
+    if (y < 0.25 && std::abs(w.state().bodies[1].v.y()) < 1) landed = true;  // stopped near the ground
+    if (landed) highestAfter = std::max(highestAfter, y);
+    lowest = std::min(lowest, y);
+  }
+  ASSERT_TRUE(landed);
+  EXPECT_GT(lowest, 0.2 - 0.005);       // never more than 5 mm in
+  EXPECT_LT(highestAfter, 0.2 + 0.005);  // and no bounce
+  EXPECT_LT(maxPen, 0.005);
+}
+
+INSTANTIATE_TEST_SUITE_P(Algorithms, EveryAlgorithm,
+                         ::testing::Values(Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5,
+                                           Algorithm::Soft),
+                         algoName);
+
+// The report's A3-A5 solve a manifold's normal rows one by one (IV.2.2: only unbounded rows are
+// block-solved); contact blocks are an extension. Row by row, one sweep over a box's four
+// coplanar points overshoots in rotation: the box landing at 6.6 m/s rises 8.4 mm after it
+// stopped (the test above asks for 5 mm with blocks on).
+TEST(ContactBlocks, OffInTheReportsPresetsAndWhatTheyChange) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]},
+      {"name": "box", "shape": {"type": "box", "half_extents": [0.3, 0.2, 0.25]}, "position": [0, 2.4, 0]}]})");
+  for (const bool blocks : {false, true}) {
+    SolverOverrides o;
+    o.preset = "4-medium";
+    if (blocks) o.contactBlocks = true;
+    const SolverSettings st = settingsFor(Algorithm::A5, o);
+    EXPECT_EQ(st.contactBlocks, blocks);
+    EXPECT_TRUE(st.blockSolve);  // the report's stable (joint) blocks stay on
+    World w(s.model, st, s.initial);
+    double highestAfter = -1e9;
+    bool landed = false;
+    int contactUnits = 0;
+    for (int k = 0; k < 120; ++k) {
+      w.step();
+      for (const SolveUnit& u : w.constraints().units) contactUnits += u.kind == SolveUnit::Contact;
+      const double y = w.state().bodies[1].x.y();
+      if (y < 0.25 && std::abs(w.state().bodies[1].v.y()) < 1) landed = true;
+      if (landed) highestAfter = std::max(highestAfter, y);
+    }
+    std::printf("contact blocks %s: highest after landing %.2f mm above rest\n", blocks ? "on" : "off",
+                (highestAfter - 0.2) * 1e3);
+    if (blocks) {
+      EXPECT_GT(contactUnits, 0);
+      EXPECT_LT(highestAfter, 0.2 + 0.005);
+    } else {
+      EXPECT_EQ(contactUnits, 0);
+      EXPECT_GT(highestAfter, 0.2 + 0.005);  // the report's row-by-row sweep rocks it
+      EXPECT_LT(highestAfter, 0.2 + 0.02);
+    }
+  }
+}
+
+// Friction impulses are warm-started as a vector fixed in B and projected on the new tangents,
+// so a normal that crosses the point where the tangent basis switches (|n.x| = 1/√3) carries its
+// friction over. Before, the old λ1, λ2 were applied along the new, unrelated tangents.
+TEST(FrictionWarmStart, ImpulseCarriesAcrossTheTangentBasisSwitch) {
+  Model model;
+  Body ground, box;
+  ground.isStatic = true;
+  ground.shape.type = ShapeType::Box;
+  ground.shape.halfExtents = Vec3(5, 0.5, 5);
+  box.shape = ground.shape;
+  box.shape.halfExtents = Vec3::Constant(0.5);
+  box.mass = 1;
+  box.invMass = 1;
+  box.inertia = Vec3::Constant(1.0 / 6);
+  box.invInertia = Vec3::Constant(6);
+  model.bodies = {ground, box};
+  std::vector<BodyMass> mass = {BodyMass{}, BodyMass{1, Vec3::Constant(6)}};
+  SolverSettings st = resolve(SolverOverrides{});
+  st.warmStart = true;
+  // The normal (B's local +Y, B the ground) just below the switch, then the ground turned so the
+  // world normal is just above it.
+  auto manifoldAt = [&](const Vec3& n) {
+    Manifold m;
+    m.a = 1;
+    m.b = 0;
+    m.friction = 0.8;
+    m.count = 1;
+    m.points[0].localA = -0.5 * n;
+    m.points[0].localB = Vec3::Zero();
+    m.points[0].localN = Vec3::UnitY();
+    m.points[0].lambda = 2;
+    return m;
+  };
+  auto groundTurnedTo = [](const Vec3& n) {  // a pose of the ground whose +Y is n
+    return Pose{Vec3::Zero(), Quat::FromTwoVectors(Vec3::UnitY(), n)};
+  };
+  const Vec3 n1 = Vec3(0.57, std::sqrt(1 - 0.57 * 0.57), 0), n2 = Vec3(0.585, std::sqrt(1 - 0.585 * 0.585), 0);
+  std::vector<Manifold> ms = {manifoldAt(n1)};
+  std::vector<Pose> poses = {groundTurnedTo(n1), Pose{n1, Quat::Identity()}};
+  ConstraintSet cs;
+  cs.build(model, ms, poses, mass, st, 1.0 / 60, 1.0);
+  const int f = cs.frictions[0].row;
+  cs.rows[static_cast<size_t>(f)].lambda = 0.3;
+  cs.rows[static_cast<size_t>(f + 1)].lambda = -0.2;
+  const Vec3 before = 0.3 * cs.rows[static_cast<size_t>(f)].linA - 0.2 * cs.rows[static_cast<size_t>(f + 1)].linA;
+  cs.storeImpulses(ms);
+  // The ground turns by 0.9 degrees: its normal crosses |n.x| = 0.57735 and the tangents switch.
+  poses = {groundTurnedTo(n2), Pose{n2, Quat::Identity()}};
+  cs.build(model, ms, poses, mass, st, 1.0 / 60, 1.0);
+  const Row* fr = &cs.rows[static_cast<size_t>(cs.frictions[0].row)];
+  const Vec3 after = fr[0].lambda * fr[0].linA + fr[1].lambda * fr[1].linA;
+  const Quat turn = Quat::FromTwoVectors(n1, n2);
+  std::printf("friction impulse carried: |before| %.4f, |after| %.4f, difference from the turned impulse %.2e; "
+              "old tangent t1 · new t1 = %.3f\n",
+              before.norm(), after.norm(), (after - turn * before).norm(), fr[0].linA.dot(turn * before.normalized()));
+  EXPECT_LT((after - turn * before).norm(), 1e-9);  // the same impulse, turned with the ground
+}
+
+// Friction rows are velocity-level rows: under A4 they keep β = 0 (an extension, on by default);
+// with --no-friction-exempt they take the bias update rule like every row, as the report's
+// listing has it (proc4:16): after a step of sliding their β holds -Σ J̌v̌ʲ, the slide so far. While
+// a contact slides its friction is at the bound either way and the choice changes little: a
+// 1000 kg box at 4 m/s on μ 0.3 slides v²/2μg within 0.3 %, and the two differ by 0.06 mm.
+TEST(FrictionExempt, FrictionTakesTheBiasUpdateOnlyWhenAsked) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [50, 0.5, 5]}, "position": [0, -0.5, 0],
+       "friction": 0.3},
+      {"name": "box", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 0.499, 0],
+       "velocity": [4, 0, 0], "friction": 0.3}]})");
+  const double closedForm = 16 / (2 * 0.3 * 9.81);  // 2.72 m
+  double slid[2];
+  for (const bool exempt : {true, false}) {
+    SolverOverrides o;
+    o.frictionExempt = exempt;
+    o.contactBlocks = true;
+    World w(s.model, settingsFor(Algorithm::A4, o), s.initial);
+    w.step();
+    double largestBias = 0;
+    for (const Row& r : w.constraints().rows)
+      if (r.normalRow >= 0) {
+        EXPECT_EQ(r.velocityLevel, exempt);
+        largestBias = std::max(largestBias, std::abs(r.bias));
+      }
+    if (exempt) {
+      EXPECT_EQ(largestBias, 0.0);
+    } else {
+      EXPECT_GT(largestBias, 0.05);  // about 3 of the 4 sub-steps' slide, 4 m/s each
+    }
+    for (int k = 1; k < 120; ++k) w.step();  // it stops at 1.36 s
+    slid[exempt] = w.state().bodies[1].x.x();
+  }
+  std::printf("a4: slid %.4f m with friction exempt, %.4f m with the update rule on friction (v²/2μg = %.4f m)\n",
+              slid[1], slid[0], closedForm);
+  EXPECT_NEAR(slid[1], closedForm, 0.02 * closedForm);
+  EXPECT_NEAR(slid[0], slid[1], 1e-3);  // measured 0.06 mm apart, from the steps where it stops
+}
