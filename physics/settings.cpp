@@ -139,6 +139,10 @@ std::vector<SettingSpec> makeTable() {
        "a5: recompute every joint's Jacobian between sub-steps (joints, an extension, the default) or only the "
        "'stable' rows' while micro-iterating (stable, the report's IV.4.1)",
        &O::jacobians},
+      {"gyroscopic", "gyro", "gyroscopic", K::Choice, {0, 0}, {"none", "explicit", "implicit"},
+       "The gyroscopic term ω × Iω (beyond the report, which has none): none (the default), explicit, or implicit "
+       "(one Newton step on the body-frame Euler equation)",
+       &O::gyroscopic},
       {"contact_hertz", "", "contact-hertz", K::Real, {0.01, 1e4}, {},
        "soft: contact stiffness as a frequency [Hz] (default 30, at most a quarter of the sub-step rate)",
        &O::contactHertz},
@@ -488,6 +492,10 @@ SolverSettings resolve(const SolverOverrides& o) {
   if (o.restitution) s.restitution = *o.restitution;
   if (o.restitutionThreshold) s.restitutionThreshold = *o.restitutionThreshold;
   if (o.jacobians) s.jacobians = *o.jacobians == "stable" ? JacobianRefresh::Stable : JacobianRefresh::Joints;
+  if (o.gyroscopic)
+    s.gyroscopic = *o.gyroscopic == "implicit" ? Gyroscopic::Implicit
+                   : *o.gyroscopic == "explicit" ? Gyroscopic::Explicit
+                                                 : Gyroscopic::None;
   if (o.contactHertz) s.contactHertz = *o.contactHertz;
   if (o.contactDamping) s.contactDamping = *o.contactDamping;
   if (o.jointHertz) s.jointHertz = *o.jointHertz;

@@ -23,6 +23,13 @@ std::optional<Algorithm> parseAlgorithm(const std::string& s);
 bool subSteps(Algorithm a);                   // A3, A4, A5, Soft: they take n
 bool havokScaled(Algorithm a);                // A3, A4, A5: they take κ and τ
 
+// The gyroscopic term of Euler's equation I ω̇ + ω × Iω = 0, which the report's ext leaves out.
+enum class Gyroscopic {
+  None,      // the report's: v̌ constant in free flight (keeps ½ v̌ᵀIv̌, no precession)
+  Explicit,  // ω += -h I⁻¹(ω × Iω): gains energy every step
+  Implicit,  // one Newton step on I(ω' - ω) + h ω' × Iω' = 0 in the body frame (Catto, GDC 2015)
+};
+
 // Which joint Jacobians A5 recomputes between sub-steps (IV.4.1).
 enum class JacobianRefresh {
   Joints,  // every joint's, from the coordinates stepped by the summed rotation (an extension)
@@ -50,6 +57,7 @@ struct SolverSettings {
   bool restitution = true;       // bodies' restitution applied after the velocity solve
   double restitutionThreshold = 1.0;  // approach speeds below this do not bounce [m/s]
   JacobianRefresh jacobians = JacobianRefresh::Joints;  // A5 (IV.4.1)
+  Gyroscopic gyroscopic = Gyroscopic::None;             // the report's: none
   // The soft step (Box2D v3): softness of contacts and joints, push-out cap.
   double contactHertz = 30;      // [Hz]
   double contactDamping = 10;    // damping ratio ζ
@@ -70,6 +78,7 @@ struct SolverOverrides {
   std::optional<bool> motorUnscaled, frictionExempt, speculative, restitution;
   std::optional<double> restitutionThreshold;
   std::optional<std::string> jacobians;  // "joints" or "stable"
+  std::optional<std::string> gyroscopic;  // "none", "explicit", "implicit"
   std::optional<double> contactHertz, contactDamping, jointHertz, jointDamping, pushOut;
   std::optional<std::string> preset;   // Havok's presets, e.g. "4-medium"
 

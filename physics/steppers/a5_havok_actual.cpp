@@ -92,8 +92,9 @@ class HavokActualStepper final : public Stepper {
         const Vec3 ext = dt * c.model->gravity;
         for (size_t i = 0; i < nb; ++i) {
           if (c.model->bodies[i].isStatic) continue;
+          const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
           c.v[i] = c.subV[static_cast<size_t>(j) * nb + i] + ext + sumV_[i];
-          c.w[i] = c.subW[static_cast<size_t>(j) * nb + i] + sumW_[i];
+          c.w[i] = w + gyroscopicChange(w, c.model->bodies[i].inertia, dt, st.gyroscopic) + sumW_[i];
         }
         if (!cs.joints.empty()) {
           advanceSubPoses(c, j, RotationRule::Summed);

@@ -1,5 +1,7 @@
 #include "physics/steppers/stepper.h"
 
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
 
@@ -7,8 +9,27 @@ namespace substep {
 
 void addExternal(StepContext& c, double dt) {
   const Vec3 dv = dt * c.model->gravity;
-  for (size_t i = 0; i < c.bodies(); ++i)
-    if (c.mass[i].invMass > 0) c.v[i] += dv;
+  const Gyroscopic gyro = c.settings->gyroscopic;
+  for (size_t i = 0; i < c.bodies(); ++i) {
+    if (c.mass[i].invMass == 0) continue;
+    c.v[i] += dv;
+    if (gyro != Gyroscopic::None) c.w[i] += gyroscopicChange(c.w[i], c.model->bodies[i].inertia, dt, gyro);
+  }
+}
+
+Vec3 gyroscopicChange(const Vec3& w, const Vec3& I, double dt, Gyroscopic mode) {
+  const Vec3 Iw = I.cwiseProduct(w);
+  if (mode == Gyroscopic::Explicit) return -dt * I.cwiseInverse().cwiseProduct(w.cross(Iw));
+  if (mode == Gyroscopic::None) return Vec3::Zero();
+  // f(ω') = I(ω' − ω) + h ω' × Iω' = 0; one Newton step from ω' = ω:
+  //   J = I + h ([ω]× I − [Iω]×),   ω' = ω − J⁻¹ h (ω × Iω)
+  auto skew = [](const Vec3& a) {
+    Mat3 m;
+    m << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+    return m;
+  };
+  const Mat3 J = Mat3(I.asDiagonal()) + dt * (skew(w) * I.asDiagonal() - skew(Iw));
+  return -J.partialPivLu().solve(dt * w.cross(Iw));
 }
 
 void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w) {

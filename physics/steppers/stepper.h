@@ -65,9 +65,11 @@ std::unique_ptr<Stepper> makeStepper(Algorithm a);
 
 // --- shared pieces ---------------------------------------------------------------------------
 
-// Adds ext, the velocity the external forces give in time dt (gravity only: no gyroscopic term,
-// as the report's ext), to every dynamic body.
+// Adds ext, the velocity the external forces give in time dt, to every dynamic body: gravity, and
+// the gyroscopic term if the settings ask for it (the report's ext has none).
 void addExternal(StepContext& c, double dt);
+// The change of a body-frame angular velocity w over dt from ω × Iω alone (I the principal moments).
+Vec3 gyroscopicChange(const Vec3& w, const Vec3& I, double dt, Gyroscopic mode);
 
 // Applies every row's current λ to the velocities (warm starting): v̌ += M̌⁻¹J̌ᵀλ.
 void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w);
