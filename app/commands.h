@@ -10,5 +10,6 @@ namespace substep::app {
 void addRunCommand(CLI::App& app, std::function<int()>& action);
 void addScenesCommand(CLI::App& app, std::function<int()>& action);
 void addRenderCommand(CLI::App& app, std::function<int()>& action);
+void addSnapshotCommand(CLI::App& app, std::function<int()>& action);
 
 }  // namespace substep::app

@@ -13,5 +13,6 @@ int main(int argc, char** argv) {
   addRunCommand(app, action);
   addScenesCommand(app, action);
   addRenderCommand(app, action);
+  addSnapshotCommand(app, action);
   return runCommandLine(app, argc, argv, "substep", [&] { return action ? action() : 0; });
 }

@@ -86,8 +86,12 @@ void writePng(const std::string& path, const Image& img) {
 }
 
 std::string CompareResult::summary() const {
-  if (!sameSize) return "sizes differ";
   char buf[160];
+  if (!sameSize) {
+    std::snprintf(buf, sizeof buf, "sizes differ: expected %dx%d, actual %dx%d", expectedWidth, expectedHeight,
+                  actualWidth, actualHeight);
+    return buf;
+  }
   std::snprintf(buf, sizeof buf, "%lld pixels differ (%.4f%%), largest channel difference %d", differing, share * 100,
                 maxDelta);
   return buf;
@@ -95,6 +99,8 @@ std::string CompareResult::summary() const {
 
 CompareResult compareImages(const Image& expected, const Image& actual, const CompareOptions& o) {
   CompareResult r;
+  r.expectedWidth = expected.width, r.expectedHeight = expected.height;
+  r.actualWidth = actual.width, r.actualHeight = actual.height;
   r.sameSize = expected.width == actual.width && expected.height == actual.height && !expected.empty();
   if (!r.sameSize) return r;
   r.diff = Image(expected.width, expected.height);

@@ -29,14 +29,18 @@ Image readPng(const std::string& path);               // throws std::runtime_err
 void writePng(const std::string& path, const Image& img);
 
 // Tolerant comparison: a pixel differs when any channel differs by more than `threshold`
-// (0-255); the images match when the share of differing pixels is at most `maxShare`.
+// (0-255); the images match when the share of differing pixels is at most `maxShare`. The
+// defaults are the snapshot tests' and `substep snapshot`'s (docs/snapshots.md): llvmpipe draws
+// a frame identically every time on a machine, so they only absorb rounding between builds of
+// it, and a 2 cm move of a box (under a pixel at 480x270) differs by several times the share.
 struct CompareOptions {
   int threshold = 24;
-  double maxShare = 0.0002;
+  double maxShare = 0.0002;  // 26 pixels of 480x270
 };
 
 struct CompareResult {
-  bool sameSize = false;
+  bool sameSize = false;     // sizes differ: a mismatch, with no diff image
+  int expectedWidth = 0, expectedHeight = 0, actualWidth = 0, actualHeight = 0;
   long long differing = 0;   // pixels over the threshold
   double share = 0;          // differing / all pixels
   int maxDelta = 0;          // largest channel difference anywhere

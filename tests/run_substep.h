@@ -1,14 +1,17 @@
-// For the tests that run the built `substep` binary (test_cli, test_render_cli): one call, its
-// exit status and everything it printed, and a scratch folder per test.
+// For the tests that run the built `substep` binary (test_cli, test_render_cli, test_snapshot_cli):
+// one call, its exit status and everything it printed, a scratch folder per test, and what a
+// folder holds.
 #pragma once
 
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace substep_test {
 
@@ -46,6 +49,23 @@ inline Outcome runSubstepOnTerminal(const std::string& args) {
 inline std::filesystem::path scratchFolder(const std::string& suite) {
   return std::filesystem::path(SUBSTEP_BINARY_DIR) / suite /
          ::testing::UnitTest::GetInstance()->current_test_info()->name();
+}
+
+// The same, emptied: for tests that look at everything in it.
+inline std::filesystem::path emptyScratchFolder(const std::string& suite) {
+  const std::filesystem::path d = scratchFolder(suite);
+  std::filesystem::remove_all(d);
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+// The names in a folder, sorted; none if it does not exist.
+inline std::vector<std::string> listing(const std::filesystem::path& d) {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(d, ec)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
 }
 
 }  // namespace substep_test

@@ -1,9 +1,11 @@
 // The render library without a GL context: meshes, the scene builder's draw list, cameras,
-// colours, text layout, comparison specs, images and their tolerant comparison, the video pipe.
+// colours, text layout, comparison specs, images and their tolerant comparison, the video pipe,
+// the frame sinks.
 // (Pixels drawn by OSMesa are checked in test_snapshots.)
 #include "physics/scene_file.h"
 #include "physics/world.h"
 #include "render/compare.h"
+#include "render/frame_sink.h"
 #include "render/fxaa.h"
 #include "render/gl_renderer.h"
 #include "render/image.h"
@@ -11,10 +13,12 @@
 #include "render/scene_builder.h"
 #include "render/text.h"
 #include "render/video.h"
+#include "run_substep.h"
 
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -702,4 +706,65 @@ TEST(Video, AFailingFfmpegIsReportedAndLeavesNoFile) {
     v.write(Image(64, 48));
   }
   EXPECT_FALSE(fs::exists(f));
+}
+
+// ---- frame sinks ----
+
+// Every sink's output appears at commit() and not before; dropped before it, nothing is left.
+TEST(FrameSinks, OutputAppearsAtCommitAndNothingIsLeftWithout) {
+  using substep_test::listing;
+  const fs::path d = substep_test::emptyScratchFolder("test_render_out");
+  const Image red(32, 16, 0xff0000ffu), blue(32, 16, 0x0000ffffu);
+  {
+    PngSink png((d / "one.png").string());
+    png.write(red);
+    png.write(blue);  // one frame: the last
+  }
+  {
+    PngFolderSink folder((d / "frames/").string());
+    folder.write(red);
+  }
+  EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+
+  PngSink png((d / "one.png").string());
+  png.write(red);
+  png.write(blue);
+  png.commit();
+  EXPECT_EQ(readPng((d / "one.png").string()).rgba, blue.rgba);
+  EXPECT_THROW(PngSink((d / "none.png").string()).commit(), std::runtime_error);  // no frame
+
+  fs::create_directories(d / "frames");
+  { std::ofstream(d / "frames" / "frame_00005.png") << "stale"; }  // of an earlier, longer sequence
+  { std::ofstream(d / "frames" / "notes.txt") << "mine"; }
+  PngFolderSink folder((d / "frames/").string());
+  EXPECT_EQ(PngFolderSink::stagingPath((d / "frames/").string()), (d / "frames").string() + ".part" + std::to_string(getpid()));
+  for (const Image* f : {&red, &blue, &red}) folder.write(*f);
+  EXPECT_TRUE(fs::is_directory(PngFolderSink::stagingPath((d / "frames").string())));
+  EXPECT_EQ(listing(d / "frames"), (std::vector<std::string>{"frame_00005.png", "notes.txt"}));
+  folder.commit();
+  EXPECT_EQ(listing(d / "frames"), (std::vector<std::string>{"frame_00000.png", "frame_00001.png", "frame_00002.png", "notes.txt"}));
+  EXPECT_EQ(readPng((d / "frames" / "frame_00001.png").string()).rgba, blue.rgba);
+  EXPECT_EQ(listing(d), (std::vector<std::string>{"frames", "one.png"}));  // no staging folder left
+
+  // A folder sink onto a file is a bad path: OutputError naming it.
+  try {
+    PngFolderSink onFile((d / "one.png").string());
+    FAIL() << "a file is not a folder";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("one.png: exists and is not a folder"), std::string::npos) << e.what();
+  }
+
+  const std::string ffmpeg = findFfmpeg();
+  if (ffmpeg.empty()) GTEST_SKIP() << "ffmpeg is not installed: the video sink is not checked";
+  {
+    VideoSink video(ffmpeg, (d / "v.mp4").string(), 32, 16, {});
+    video.write(red);
+  }
+  EXPECT_FALSE(fs::exists(d / "v.mp4"));
+  VideoSink video(ffmpeg, (d / "v.mp4").string(), 32, 16, {});
+  for (int k = 0; k < 3; ++k) video.write(k % 2 ? blue : red);
+  EXPECT_FALSE(fs::exists(d / "v.mp4"));
+  video.commit();
+  EXPECT_GT(fs::file_size(d / "v.mp4"), 0u);
+  EXPECT_EQ(listing(d), (std::vector<std::string>{"frames", "one.png", "v.mp4"}));
 }

@@ -24,20 +24,10 @@ using substep_test::Outcome;
 
 Outcome run(const std::string& args, const std::string& env = "") { return substep_test::runSubstep(args, env); }
 
-// A folder per test (CTest runs tests in parallel), emptied first.
-fs::path scratch() {
-  const fs::path d = substep_test::scratchFolder("test_render_cli_out");
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+using substep_test::listing;
 
-std::vector<std::string> listing(const fs::path& d) {
-  std::vector<std::string> names;
-  for (const auto& e : fs::directory_iterator(d)) names.push_back(e.path().filename().string());
-  std::sort(names.begin(), names.end());
-  return names;
-}
+// A folder per test (CTest runs tests in parallel), emptied first.
+fs::path scratch() { return substep_test::emptyScratchFolder("test_render_cli_out"); }
 
 std::string probe(const fs::path& f) {
   const std::string cmd = "ffprobe -v error -count_frames -select_streams v:0 -show_entries "

@@ -11,6 +11,7 @@
 #include "render/gl_renderer.h"
 #include "render/image.h"
 #include "render/scene_builder.h"
+#include "render/session.h"
 
 #include <gtest/gtest.h>
 
@@ -28,10 +29,11 @@ using namespace substep::render;
 
 namespace {
 
-// Per-pixel threshold and largest share of differing pixels (26 of 129600 at 480x270). Measured:
-// two renders on this machine are identical; moving the top box of the stack by 2 cm (about
-// 0.6 px) changes 125 pixels by more than the threshold (see ComparisonCanFail).
-constexpr CompareOptions kTolerance{24, 0.0002};
+// Per-pixel threshold and largest share of differing pixels (26 of 129600 at 480x270): the
+// defaults, which `substep snapshot` uses too. Measured: two renders on this machine are
+// identical; moving the top box of the stack by 2 cm (about 0.6 px) changes 80 pixels by more
+// than the threshold (see ComparisonCanFail).
+const CompareOptions kTolerance;
 
 struct Snapshot {
   std::string name;      // tests/snapshots/<name>.png
@@ -103,65 +105,24 @@ GlRenderer& renderer(int w, int h) {
   return *r;
 }
 
-struct Stage {
-  std::unique_ptr<Scene> owned;  // on the heap: worlds keep a reference to its model
-  const Scene& scene() const { return *owned; }
-  std::vector<std::unique_ptr<World>> worlds;
-  std::vector<SolverSettings> settings;
-  CameraPreset camera;
-  ViewOptions view;
-};
-
-// Steps the case's scene (once per panel) to its time, the way `substep render` samples frames.
-Stage stage(const Snapshot& s) {
-  Stage st;
-  st.owned = std::make_unique<Scene>(loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + s.scene));
+// The case's session, stepped to its time: the session `substep render` and `substep snapshot` use.
+RenderSession stage(const Snapshot& s) {
+  auto scene = std::make_shared<const Scene>(loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + s.scene));
+  Look look;  // stepCost off: the HUD leaves out the step's cost (wall-clock time is not reproducible)
   CameraOptions cam;
-  if (s.setup) s.setup(st.view, cam);
-  st.camera = chooseCamera(st.scene(), cam);
-  std::vector<SolverOverrides> panels;
-  if (s.compare.empty()) {
-    panels.push_back({});
-  } else {
-    for (const CompareSpec& c : parseCompareSpecs(s.compare)) panels.push_back(c.overrides);
-  }
-  for (const SolverOverrides& o : panels) {
-    st.settings.push_back(resolve(st.scene().solver.withCommandLine(o)));
-    st.worlds.push_back(std::make_unique<World>(st.scene().model, st.settings.back(), st.scene().initial));
-    World& w = *st.worlds.back();
-    while (w.state().time + 0.5 * st.settings.back().dt <= s.time) {
-      const StepReport& r = w.step();
-      if (!r.finite)
-        throw std::runtime_error(s.name + " panel " + std::to_string(st.worlds.size()) + ": diverged at t = " +
-                                 std::to_string(w.state().time) + ": " + r.problem);
-    }
-  }
-  return st;
-}
-
-// The draw lists of a stage; the HUD leaves out the step's cost (wall-clock time is not reproducible).
-std::vector<DrawList> drawLists(const Stage& st, const State* replaceFirst = nullptr) {
-  std::vector<DrawList> lists;
-  for (size_t i = 0; i < st.worlds.size(); ++i) {
-    const State& s = (i == 0 && replaceFirst) ? *replaceFirst : st.worlds[i]->state();
-    HudInfo hud;
-    if (st.worlds.size() == 1) {
-      hud.scene = sceneLine(st.scene());
-      hud.settings = settingsLine(st.settings[i]);
-    }
-    hud.time = s.time;
-    const Camera cam = placeCamera(st.camera, st.scene().model, s);
-    lists.push_back(buildDrawList(st.scene().model, s, &st.worlds[i]->manifolds(), cam, st.view, hud));
-    if (st.worlds.size() > 1) lists.back().label = shortSettingsLine(st.settings[i]);
-  }
-  return lists;
+  if (s.setup) s.setup(look.view, cam);
+  look.camera = chooseCamera(*scene, cam);
+  const std::vector<CompareSpec> specs = s.compare.empty() ? std::vector<CompareSpec>(1) : parseCompareSpecs(s.compare);
+  std::vector<PanelSetup> panels;
+  for (const CompareSpec& c : specs) panels.push_back({resolve(scene->solver.withCommandLine(c.overrides)), c.text});
+  RenderSession session(scene, panels, look);
+  session.advanceTo(s.time);
+  if (const Panel* p = session.firstDiverged()) throw std::runtime_error(s.name + ": " + p->problem());
+  return session;
 }
 
 Image draw(const Snapshot& s, const std::vector<DrawList>& lists) {
-  const std::vector<Viewport> grid = gridLayout(s.width, s.height, static_cast<int>(lists.size()));
-  std::vector<View> views;
-  for (size_t i = 0; i < lists.size(); ++i) views.push_back({&lists[i], grid[i]});
-  return renderer(s.width, s.height).render(views);
+  return renderer(s.width, s.height).render(gridViews(lists, s.width, s.height));
 }
 
 fs::path failureDir() {
@@ -176,8 +137,7 @@ class Snapshots : public ::testing::TestWithParam<Snapshot> {};
 
 TEST_P(Snapshots, MatchesTheGolden) {
   const Snapshot& s = GetParam();
-  const Stage st = stage(s);
-  const Image actual = draw(s, drawLists(st));
+  const Image actual = stage(s).frame(renderer(s.width, s.height));
   const std::string golden = goldenPath(s.name);
   if (updating()) {
     writePng(golden, actual);
@@ -206,20 +166,20 @@ INSTANTIATE_TEST_SUITE_P(Golden, Snapshots, ::testing::ValuesIn(kSnapshots),
 TEST(SnapshotTolerance, ComparisonCanFail) {
   const Snapshot& s = kSnapshots[0];
   ASSERT_EQ(s.name, "stack");
-  const Stage st = stage(s);
-  const Image same = draw(s, drawLists(st));
-  State moved = st.worlds[0]->state();
+  const RenderSession st = stage(s);
+  const Image same = draw(s, st.drawLists());
+  State moved = st.panel(0).state();
   const int top = st.scene().model.bodyIndex("stack_4");
   ASSERT_GE(top, 0);
   moved.bodies[static_cast<size_t>(top)].x.x() += 0.02;
-  const Image shifted = draw(s, drawLists(st, &moved));
+  const Image shifted = draw(s, {st.drawList(0, &moved)});
   const CompareResult r = compareImages(same, shifted, kTolerance);
   writePng((failureDir() / "tolerance_shifted_2cm.diff.png").string(), r.diff);
   std::cout << "a 2 cm move of the top box: " << r.summary() << "\n";
   EXPECT_FALSE(r.match) << "a 2 cm move passed as " << r.summary();
   EXPECT_GT(r.differing, 2 * kTolerance.maxShare * s.width * s.height) << r.summary();  // not a near miss
   // And the same frame drawn again is identical: the tolerance is not hiding noise.
-  const CompareResult again = compareImages(same, draw(s, drawLists(st)), kTolerance);
+  const CompareResult again = compareImages(same, draw(s, st.drawLists()), kTolerance);
   EXPECT_EQ(again.differing, 0) << again.summary();
 }
 
@@ -227,8 +187,8 @@ TEST(SnapshotTolerance, ComparisonCanFail) {
 // wherever a box was, and a good share of the frame is boxes.
 TEST(SnapshotTolerance, PyramidIsNotEmpty) {
   const Snapshot s{"pyramid", "pyramid.json", 0.0, "", [](ViewOptions& v, CameraOptions&) { v.hud = false; }};
-  const Stage st = stage(s);
-  std::vector<DrawList> full = drawLists(st);
+  const RenderSession st = stage(s);
+  std::vector<DrawList> full = st.drawLists();
   std::vector<DrawList> empty = full;
   auto& solids = empty[0].solids;
   solids.erase(std::remove_if(solids.begin(), solids.end(),
@@ -275,8 +235,7 @@ TEST(SnapshotTolerance, MissingFontIsARenderErrorNamingIt) {
 TEST(AntiAliasing, FxaaBlendsEdgesOnlyAndMultisamplingStaysAvailable) {
   const Snapshot& s = kSnapshots[0];
   ASSERT_EQ(s.name, "stack");
-  const Stage st = stage(s);
-  const std::vector<DrawList> lists = drawLists(st);
+  const std::vector<DrawList> lists = stage(s).drawLists();
   auto frame = [&](int samples, AntiAliasing aa, const std::string& info) {
     RendererOptions o;
     o.samples = samples;

@@ -1,8 +1,9 @@
 // substep-render-bench: how long the renderer takes to draw a frame, on its own (no PNG encoding,
 // no ffmpeg, no physics in the timed part). See docs/rendering.md, "Measured".
 //
-// Method: for each scene, the world is stepped to --at outside the timing and its draw list built
-// once (as `substep render` builds it: the scene's first camera, the HUD with a fixed step cost).
+// Method: for each scene, a RenderSession (the one `substep render` uses) is stepped to --at
+// outside the timing and its draw list built once (the scene's first camera, the HUD with the
+// step cost measured on the way).
 // A GlRenderer per setting (the command line's, or each --variant) draws --warmup frames that are
 // not counted (shader compilation, first-use uploads), then --frames frames, each timed on its
 // own with steady_clock around GlRenderer::render() into a reused image, the call `substep
@@ -15,10 +16,10 @@
 // can differ from the untimed median. The load average at start and end says how busy the
 // machine was. Exit status: 0 done, 2 bad input, 3 a scene diverged, 1 other failures.
 #include "app/common.h"
-#include "physics/world.h"
+#include "app/render_options.h"
 #include "render/gl_renderer.h"
 #include "render/image.h"
-#include "render/scene_builder.h"
+#include "render/session.h"
 
 #include <CLI/CLI.hpp>
 
@@ -63,21 +64,6 @@ std::string loadText() {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.2f %.2f %.2f", l[0], l[1], l[2]);
   return buf;
-}
-
-void parseSize(const std::string& s, int& w, int& h) {
-  const size_t x = s.find('x');
-  char* end = nullptr;
-  w = h = -1;
-  if (x != std::string::npos && x > 0 && x + 1 < s.size()) {
-    const long a = std::strtol(s.c_str(), &end, 10);
-    if (end == s.c_str() + x) {
-      const long b = std::strtol(s.c_str() + x + 1, &end, 10);
-      if (*end == '\0' && a > 0 && b > 0 && a <= 7680 && b <= 4320) w = static_cast<int>(a), h = static_cast<int>(b);
-    }
-  }
-  if (w < 16 || h < 16)
-    throw UsageError("--size: expected WIDTHxHEIGHT from 16x16 to 7680x4320, e.g. 1280x720, got \"" + s + "\"");
 }
 
 struct Options {
@@ -126,11 +112,11 @@ Variant parseVariant(const std::string& text, const RendererOptions& base, bool 
 
 int run(const Options& o) {
   int width = 0, height = 0;
-  parseSize(o.size, width, height);
+  parseFrameSize(o.size, width, height);
   std::vector<std::string> files = o.scenes;
   if (files.empty()) files = {assetsDir() + "/scenes/pyramid.json", assetsDir() + "/scenes/pile.json"};
-  std::vector<Scene> scenes;
-  for (const std::string& f : files) scenes.push_back(load(f));  // all checked before any work
+  std::vector<std::shared_ptr<const Scene>> scenes;
+  for (const std::string& f : files) scenes.push_back(std::make_shared<const Scene>(load(f)));  // all checked before any work
 
   RendererOptions ro;
   if (o.samples > 0) ro.samples = o.samples;
@@ -144,38 +130,29 @@ int run(const Options& o) {
             << " warm-up, stages over " << o.split << " frames; LP_NUM_THREADS=" << (threads ? threads : "unset (2)")
             << "\nload average at start: " << loadText() << "\n";
 
-  for (const Scene& scene : scenes) {
-    const SolverSettings settings = resolveSettings(scene, SolverOverrides{});
-    World world(scene.model, settings, scene.initial);
-    const auto s0 = Clock::now();
-    while (world.state().time + 0.5 * settings.dt <= o.at) {
-      const StepReport& r = world.step();
-      if (!r.finite) {
-        std::cerr << "substep-render-bench: " << scene.file << ": the simulation diverged at t = " << world.state().time
-                  << " s: " << r.problem << "\n";
-        return kExitNonFinite;
-      }
-    }
-    const double stepMs = msSince(s0) / std::max<long long>(1, world.state().step);
-
+  for (const std::shared_ptr<const Scene>& shared : scenes) {
+    const Scene& scene = *shared;
     CameraOptions co;
     co.preset = o.camera;
-    CameraPreset preset;
+    Look look;
     try {
-      preset = chooseCamera(scene, co);
+      look.camera = chooseCamera(scene, co);
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
-    ViewOptions view;
-    view.hud = !o.noHud;
-    HudInfo hud;
-    hud.scene = sceneLine(scene);
-    hud.settings = settingsLine(settings);
-    hud.time = world.state().time;
-    hud.stepMs = 1.0;  // fixed, so every frame draws the same text
-    const Camera cam = placeCamera(preset, scene.model, world.state());
+    look.view.hud = !o.noHud;
+    look.stepCost = true;  // as `substep render` draws it; the list is built once, so every frame draws the same text
+    RenderSession session(shared, {{resolveSettings(scene, SolverOverrides{}), ""}}, look);
+    const auto s0 = Clock::now();
+    session.advanceTo(o.at);
+    if (const Panel* p = session.firstDiverged()) {
+      std::cerr << "substep-render-bench: " << scene.file << ": " << p->problem() << "\n";
+      return kExitNonFinite;
+    }
+    const State& state = session.panel(0).state();
+    const double stepMs = msSince(s0) / std::max<long long>(1, state.step);
     const auto b0 = Clock::now();
-    const DrawList list = buildDrawList(scene.model, world.state(), &world.manifolds(), cam, view, hud);
+    const DrawList list = session.drawList(0);
     const double buildMs = msSince(b0);
 
     const std::vector<View> views = {View{&list, Viewport{0, 0, width, height}}};
@@ -217,8 +194,8 @@ int run(const Options& o) {
       }
 
     std::printf("\n%s: %d dynamic bodies at t = %.2f s (%lld steps, %.2f ms each); draw list %.2f ms\n",
-                scene.file.c_str(), scene.model.dynamicCount(), world.state().time,
-                static_cast<long long>(world.state().step), stepMs, buildMs);
+                scene.file.c_str(), scene.model.dynamicCount(), state.time, static_cast<long long>(state.step), stepMs,
+                buildMs);
     for (size_t i = 0; i < runs.size(); ++i) {
       Run& r = runs[i];
       if (!o.save.empty()) {

@@ -1,0 +1,79 @@
+// Where frames go: one PNG, a numbered PNG sequence, an H.264 video; the interface leaves room
+// for a stream (a JPEG per write(), closed at commit()).
+//
+// Frames come in order. commit() completes the output, which appears all at once: it is written
+// under a temporary name (PATH.part<pid>, a staging folder for sequences) and renamed into
+// place; a sink destroyed without commit() leaves nothing behind (a failure, a divergence,
+// Ctrl-C). Errors: OutputError for a path that cannot be used, std::runtime_error (VideoError
+// from ffmpeg) for a failure while writing.
+#pragma once
+
+#include "render/image.h"
+#include "render/video.h"
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+namespace substep::render {
+
+class OutputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class FrameSink {
+ public:
+  virtual ~FrameSink() = default;
+  virtual void write(const Image& frame) = 0;
+  virtual void commit() = 0;
+};
+
+// One PNG: the last frame written, encoded at commit().
+class PngSink final : public FrameSink {
+ public:
+  explicit PngSink(std::string path) : path_(std::move(path)) {}
+  void write(const Image& frame) override { last_ = frame; }
+  void commit() override;
+
+ private:
+  std::string path_;
+  Image last_;
+};
+
+// frame_00000.png, frame_00001.png, ... into a folder. Frames go to a sibling staging folder;
+// commit() moves them into place and removes the frames of an earlier, longer sequence (other
+// files in the folder stay).
+class PngFolderSink final : public FrameSink {
+ public:
+  explicit PngFolderSink(const std::string& folder);  // throws OutputError
+  ~PngFolderSink() override;
+  PngFolderSink(const PngFolderSink&) = delete;
+  PngFolderSink& operator=(const PngFolderSink&) = delete;
+  void write(const Image& frame) override;
+  void commit() override;
+
+  static std::string stagingPath(const std::string& folder);  // FOLDER.part<pid>
+  static std::string frameName(long long k);                  // frame_00042.png
+
+ private:
+  std::string given_, dir_, stage_;
+  long long count_ = 0;
+  bool committed_ = false;
+};
+
+// H.264 (libx264, yuv420p) through the ffmpeg program, into PATH.part<pid>, renamed at commit().
+class VideoSink final : public FrameSink {
+ public:
+  // Starts ffmpeg; width and height even. Throws VideoError.
+  VideoSink(const std::string& ffmpeg, const std::string& path, int width, int height, const VideoOptions& o);
+  ~VideoSink() override;
+  void write(const Image& frame) override { encoder_->write(frame); }
+  void commit() override;
+
+ private:
+  std::string path_, temp_;
+  std::unique_ptr<VideoEncoder> encoder_;
+};
+
+}  // namespace substep::render

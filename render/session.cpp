@@ -1,0 +1,145 @@
+#include "render/session.h"
+
+#include <cstdio>
+
+namespace substep::render {
+
+Panel::Panel(const Scene& scene, PanelSetup setup)
+    : scene_(scene), setup_(std::move(setup)),
+      world_(std::make_unique<World>(scene.model, setup_.settings, scene.initial)) {}
+
+bool Panel::takeStep() {
+  const StepReport& r = world_->step();
+  if (!r.finite) {
+    const State& s = world_->state();
+    diverged_ = true;
+    problem_ = (name().empty() ? std::string() : "panel \"" + name() + "\": ") + "the simulation diverged at step " +
+               std::to_string(s.step) + " (t = " + std::to_string(s.time) + " s): " + r.problem;
+    return false;
+  }
+  costSum_ += r.times.total();
+  physicsSeconds_ += r.times.total();
+  ++costSteps_;
+  ++steps_;
+  return true;
+}
+
+void Panel::advanceTo(double t) {
+  if (diverged_) return;
+  const double dt = world_->settings().dt;
+  // A copy per advance (a frame), not per step: what a diverged panel goes on showing.
+  if (world_->state().time + 0.5 * dt <= t) lastGood_ = world_->state();
+  while (world_->state().time + 0.5 * dt <= t)
+    if (!takeStep()) return;
+  if (costSteps_ > 0) lastStepMs_ = 1e3 * costSum_ / costSteps_;
+  costSum_ = 0;
+  costSteps_ = 0;
+}
+
+void Panel::stepOnce() {
+  if (diverged_) return;
+  lastGood_ = world_->state();
+  if (takeStep()) lastStepMs_ = 1e3 * costSum_;
+  costSum_ = 0;
+  costSteps_ = 0;
+}
+
+RenderSession::RenderSession(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels, Look look)
+    : scene_(std::move(scene)), look_(std::move(look)) {
+  setPanels(panels);
+}
+
+const Panel* RenderSession::firstDiverged() const {
+  for (const auto& p : panels_)
+    if (p->diverged()) return p.get();
+  return nullptr;
+}
+
+void RenderSession::advanceTo(double t) {
+  for (auto& p : panels_) p->advanceTo(t);
+}
+
+void RenderSession::step() {
+  for (auto& p : panels_) p->stepOnce();
+}
+
+void RenderSession::reset() {
+  for (int i = 0; i < panelCount(); ++i) setPanel(i, panel(i).setup());
+}
+
+void RenderSession::setPanels(const std::vector<PanelSetup>& panels) {
+  std::vector<std::unique_ptr<Panel>> made;
+  for (size_t i = 0; i < panels.size(); ++i) {
+    try {
+      made.push_back(std::make_unique<Panel>(*scene_, panels[i]));
+    } catch (const std::invalid_argument& e) {
+      throw PanelError(static_cast<int>(i), e.what());
+    }
+  }
+  panels_ = std::move(made);  // all or nothing
+}
+
+void RenderSession::setPanel(int i, const PanelSetup& setup) {
+  try {
+    panels_[static_cast<size_t>(i)] = std::make_unique<Panel>(*scene_, setup);
+  } catch (const std::invalid_argument& e) {
+    throw PanelError(i, e.what());
+  }
+}
+
+void RenderSession::setSettings(int i, const SolverSettings& settings) {
+  Panel& p = *panels_[static_cast<size_t>(i)];
+  p.world_->setSettings(settings);
+  p.setup_.settings = settings;
+}
+
+DrawList RenderSession::drawList(int i, const State* state) const {
+  const Panel& p = panel(i);
+  const State& s = state ? *state : p.state();
+  const bool lone = panels_.size() == 1;
+  HudInfo hud;
+  if (lone) {
+    hud.scene = sceneLine(*scene_);
+    hud.settings = settingsLine(p.settings());
+  }  // a grid panel's label names its settings; its HUD keeps to time and cost
+  hud.time = s.time;
+  if (look_.stepCost) hud.stepMs = p.lastStepMs();
+  if (p.diverged()) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "diverged at t = %.3f s", p.world().state().time);
+    hud.status = buf;
+  }
+  const Camera cam = placeCamera(look_.camera, scene_->model, s, look_.orbit);
+  // A diverged world's manifolds belong to its non-finite state.
+  DrawList dl = buildDrawList(scene_->model, s, p.diverged() ? nullptr : &p.world().manifolds(), cam, look_.view, hud);
+  if (!lone) dl.label = shortSettingsLine(p.settings());
+  return dl;
+}
+
+std::vector<DrawList> RenderSession::drawLists() const {
+  std::vector<DrawList> lists;
+  lists.reserve(panels_.size());
+  for (int i = 0; i < panelCount(); ++i) lists.push_back(drawList(i));
+  return lists;
+}
+
+void RenderSession::frame(GlRenderer& renderer, Image& out) const {
+  const std::vector<DrawList> lists = drawLists();
+  renderer.render(gridViews(lists, renderer.width(), renderer.height()), out);
+}
+
+Image RenderSession::frame(GlRenderer& renderer) const {
+  Image img;
+  frame(renderer, img);
+  return img;
+}
+
+std::vector<View> gridViews(const std::vector<DrawList>& lists, int width, int height) {
+  const std::vector<Viewport> grid = gridLayout(width, height, static_cast<int>(lists.size()));
+  std::vector<View> views;
+  views.reserve(lists.size());
+  for (size_t i = 0; i < lists.size(); ++i) views.push_back({&lists[i], grid[i]});
+  return views;
+}
+
+}  // namespace substep::render

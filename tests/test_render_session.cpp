@@ -1,0 +1,209 @@
+// The render session (render/session.h), the unit `substep render`, `substep snapshot`, the
+// snapshot tests and the render benchmark share: panels stepped to a time, per-panel cost and
+// divergence, panels replaced or re-set, the camera and the HUD changed between frames.
+#include "physics/scene_file.h"
+#include "render/gl_renderer.h"
+#include "render/session.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+
+using namespace substep;
+using namespace substep::render;
+
+namespace {
+
+std::shared_ptr<const Scene> sceneFile(const std::string& name) {
+  return std::make_shared<const Scene>(loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + name));
+}
+
+// A 5 kg beam welded to a wall. A5 with one warm-started sweep per sub-step diverges on it near
+// t = 1.2 s; cold, it holds (test_joints: WarmStart.OneSweepPerSubStepDivergesOnAFixedJoint).
+std::shared_ptr<const Scene> weldedBeam() {
+  return std::make_shared<const Scene>(parseScene(R"({"bodies": [
+      {"name": "wall", "static": true, "shape": {"type": "box", "half_extents": [0.1, 1, 1]}, "position": [0, 3, 0]},
+      {"name": "beam", "shape": {"type": "box", "half_extents": [1, 0.1, 0.1]}, "position": [1.1, 3, 0], "mass": 5}],
+    "joints": [{"type": "fixed", "bodies": ["wall", "beam"], "anchor": [0.1, 3, 0]}]})",
+                                                  "beam.json", "."));
+}
+
+SolverSettings settings(Algorithm a, bool warm = false) {
+  SolverOverrides o;
+  o.algorithm = a;
+  o.warmStart = warm;
+  return resolve(o);
+}
+
+bool hudHas(const DrawList& dl, const std::string& part) {
+  for (const TextLine& l : dl.hud)
+    if (l.text.find(part) != std::string::npos) return true;
+  return false;
+}
+
+}  // namespace
+
+// Panels step to the step nearest the time asked, only forward; step() takes one, reset() starts over.
+TEST(RenderSession, AdvancesToTheNearestStepOnlyForward) {
+  RenderSession s(sceneFile("stack.json"), {{settings(Algorithm::A2), ""}});
+  ASSERT_EQ(s.panelCount(), 1);
+  EXPECT_EQ(s.panel(0).state().step, 0);
+  EXPECT_TRUE(std::isnan(s.panel(0).lastStepMs()));
+  s.advanceTo(1.0);
+  EXPECT_EQ(s.panel(0).state().step, 60);  // h = 1/60
+  EXPECT_NEAR(s.panel(0).state().time, 1.0, 1e-9);
+  EXPECT_EQ(s.panel(0).steps(), 60);
+  EXPECT_GT(s.panel(0).lastStepMs(), 0);
+  EXPECT_GT(s.panel(0).physicsSeconds(), 0);
+  s.advanceTo(1.004);  // nearer to step 60 than 61
+  s.advanceTo(0.5);    // back: nothing
+  EXPECT_EQ(s.panel(0).state().step, 60);
+  s.advanceTo(1.01);
+  EXPECT_EQ(s.panel(0).state().step, 61);
+  s.step();
+  EXPECT_EQ(s.panel(0).state().step, 62);
+  s.reset();
+  EXPECT_EQ(s.panel(0).state().step, 0);
+  EXPECT_EQ(s.panel(0).steps(), 0);
+  EXPECT_EQ(s.firstDiverged(), nullptr);
+}
+
+// A panel that diverges is marked, names itself, the step and the body, keeps showing its last
+// finite state, and stops; the other panels go on.
+TEST(RenderSession, ADivergingPanelIsReportedAndTheOthersGoOn) {
+  RenderSession s(weldedBeam(), {{settings(Algorithm::A5, true), "a5:warm=on"}, {settings(Algorithm::A5), "a5"}});
+  s.advanceTo(2.0);
+  const Panel& bad = s.panel(0);
+  const Panel& good = s.panel(1);
+  ASSERT_TRUE(bad.diverged());
+  EXPECT_EQ(s.firstDiverged(), &bad);
+  EXPECT_EQ(bad.problem().rfind("panel \"a5:warm=on\": the simulation diverged at step ", 0), 0u) << bad.problem();
+  EXPECT_NE(bad.problem().find("\"beam\""), std::string::npos) << bad.problem();
+  EXPECT_TRUE(bad.state().finite());
+  EXPECT_LT(bad.state().time, bad.world().state().time);
+  EXPECT_FALSE(good.diverged());
+  EXPECT_EQ(good.state().step, 120);
+  EXPECT_LT((good.state().bodies[1].x - Vec3(1.1, 3, 0)).norm(), 0.02);  // still welded
+
+  // Drawn: the diverged panel with its status in the HUD, no contacts of its non-finite world.
+  const DrawList dl = s.drawList(0);
+  EXPECT_TRUE(hudHas(dl, "diverged at t = ")) << dl.hud.back().text;
+  EXPECT_EQ(dl.label, "a5 n=4 m=1 κ=1 τ=0.6 warm");
+  EXPECT_FALSE(hudHas(s.drawList(1), "diverged"));
+
+  // It stays where it stopped; the other one goes on.
+  const long long stopped = bad.world().state().step;
+  s.advanceTo(3.0);
+  s.step();
+  EXPECT_EQ(bad.world().state().step, stopped);
+  EXPECT_EQ(good.state().step, 181);
+  // reset() gives it a fresh start.
+  s.reset();
+  EXPECT_FALSE(s.panel(0).diverged());
+  EXPECT_EQ(s.panel(0).state().step, 0);
+}
+
+// The HUD: a lone panel names the scene and its settings; panels of a grid are labelled with
+// theirs instead. The measured step cost (wall-clock) only when asked.
+TEST(RenderSession, HudNamesTheSceneOrLabelsThePanels) {
+  RenderSession lone(sceneFile("stack.json"), {{settings(Algorithm::A2), ""}});
+  lone.advanceTo(0.5);
+  DrawList dl = lone.drawList(0);
+  ASSERT_EQ(dl.hud.size(), 3u);
+  EXPECT_EQ(dl.hud[0].text, "stack: 5 bodies, 0 joints");
+  EXPECT_EQ(dl.hud[1].text, settingsLine(settings(Algorithm::A2)));
+  EXPECT_EQ(dl.hud[2].text, "t = 0.500 s");
+  EXPECT_TRUE(dl.label.empty());
+  Look look = lone.look();
+  look.stepCost = true;
+  lone.setLook(look);
+  EXPECT_NE(lone.drawList(0).hud[2].text.find("    step "), std::string::npos) << lone.drawList(0).hud[2].text;
+
+  RenderSession grid(sceneFile("stack.json"), {{settings(Algorithm::A2), "a2"}, {settings(Algorithm::A5), "a5"}});
+  const std::vector<DrawList> lists = grid.drawLists();
+  ASSERT_EQ(lists.size(), 2u);
+  EXPECT_EQ(lists[0].label, "a2 m=10");
+  EXPECT_EQ(lists[1].label, "a5 n=4 m=1 κ=1 τ=0.6");
+  ASSERT_EQ(lists[1].hud.size(), 1u);
+  EXPECT_EQ(lists[1].hud[0].text, "t = 0.000 s");
+}
+
+// A panel replaced, or its settings changed, between frames: replaced, it starts over from the
+// scene; changed, it goes on from its state under the new settings.
+TEST(RenderSession, PanelsAreReplacedOrChangedBetweenFrames) {
+  RenderSession s(sceneFile("pendulum_chain.json"), {{settings(Algorithm::A2), "a2"}, {settings(Algorithm::A2), "a2'"}});
+  s.advanceTo(0.5);
+  s.setPanel(1, {settings(Algorithm::A5), "a5"});
+  EXPECT_EQ(s.panel(1).name(), "a5");
+  EXPECT_EQ(s.panel(1).settings().algorithm, Algorithm::A5);
+  EXPECT_EQ(s.panel(1).state().step, 0);
+  EXPECT_EQ(s.panel(0).state().step, 30);
+  s.advanceTo(1.0);  // catches up
+  EXPECT_EQ(s.panel(1).state().step, 60);
+
+  SolverSettings a4 = settings(Algorithm::A4);
+  s.setSettings(0, a4);
+  EXPECT_EQ(s.panel(0).settings().algorithm, Algorithm::A4);
+  EXPECT_EQ(s.panel(0).setup().settings.algorithm, Algorithm::A4);
+  EXPECT_EQ(s.panel(0).state().step, 60);  // no restart
+  s.step();
+  EXPECT_EQ(s.panel(0).state().step, 61);
+
+  s.setPanels({{settings(Algorithm::A3), ""}});
+  EXPECT_EQ(s.panelCount(), 1);
+  EXPECT_EQ(s.panel(0).state().step, 0);
+  EXPECT_TRUE(s.drawList(0).label.empty());  // a lone panel again
+}
+
+// A World that cannot be made is a PanelError naming the panel, and the session keeps what it had.
+TEST(RenderSession, AnImpossiblePanelIsAPanelError) {
+  Scene bad = *sceneFile("stack.json");
+  bad.model.bodies[1].isStatic = false;
+  bad.model.bodies[1].shape.type = ShapeType::Plane;  // a moving plane: World refuses it
+  try {
+    RenderSession s(std::make_shared<const Scene>(bad), {{settings(Algorithm::A2), "a2"}});
+    FAIL() << "a dynamic plane must be refused";
+  } catch (const PanelError& e) {
+    EXPECT_EQ(e.panel, 0);
+    EXPECT_NE(std::string(e.what()).find("must be static"), std::string::npos) << e.what();
+  }
+}
+
+// The camera changes between frames: a new preset, an orbit with simulated time, a followed body.
+TEST(RenderSession, TheCameraChangesBetweenFrames) {
+  RenderSession s(sceneFile("pendulum_chain.json"), {{settings(Algorithm::A2), ""}});
+  const Camera first = s.drawList(0).camera;
+  CameraPreset c = s.look().camera;
+  c.yaw += 90;
+  s.setCamera(c);
+  const Camera turned = s.drawList(0).camera;
+  EXPECT_GT((turned.eye - first.eye).norm(), 1.0);
+  EXPECT_LT((turned.target - first.target).norm(), 1e-6);
+  s.setCamera(c, 90);  // 90 degrees per simulated second
+  s.advanceTo(1.0);
+  const Camera orbited = s.drawList(0).camera;
+  EXPECT_GT((orbited.eye - turned.eye).norm(), 1.0);
+  c.follow = "pendulum_9";
+  s.setCamera(c);
+  const Vec3 tip = s.panel(0).state().bodies[static_cast<size_t>(s.scene().model.bodyIndex("pendulum_9"))].x;
+  EXPECT_LT((s.drawList(0).camera.target - tip.cast<float>()).norm(), 1e-5);
+}
+
+// frame() draws the draw lists into the renderer's frame: the grid's two panels side by side.
+TEST(RenderSession, FrameIsTheDrawListsInAGrid) {
+  RenderSession s(sceneFile("stack.json"), {{settings(Algorithm::A2), "a2"}, {settings(Algorithm::A5), "a5"}});
+  s.advanceTo(0.25);
+  GlRenderer r(160, 90);
+  const Image img = s.frame(r);
+  ASSERT_EQ(img.width, 160);
+  const std::vector<DrawList> lists = s.drawLists();
+  EXPECT_EQ(img.rgba, r.render(gridViews(lists, 160, 90)).rgba);
+  const std::vector<View> views = gridViews(lists, 160, 90);
+  ASSERT_EQ(views.size(), 2u);
+  EXPECT_EQ(views[1].viewport.x, 80);
+  EXPECT_EQ(views[1].list, &lists[1]);
+  const uint8_t* border = img.pixel(79, 60);  // the dark column between the panels
+  EXPECT_LT(border[0] + border[1] + border[2], 30);
+}
