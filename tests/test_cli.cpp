@@ -222,7 +222,7 @@ TEST(Cli, InterruptedRunLeavesNoTemporary) {
 
 // The progress bar is drawn on a terminal only, and -q silences it there too.
 TEST(Cli, ProgressBarOnlyOnATerminalAndNotWithQuiet) {
-  const std::string args = "run assets/scenes/pyramid.json --seconds 12";  // over a second of wall time
+  const std::string args = "run assets/scenes/pyramid.json --seconds 40";  // well over a second of wall time
   Outcome r = substep_test::runSubstepOnTerminal(args);
   EXPECT_NE(r.output.find("run ["), std::string::npos) << r.output;
   r = substep_test::runSubstepOnTerminal(args + " -q");
