@@ -1,5 +1,6 @@
 #include "app/common.h"
 
+#include <fcntl.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -159,6 +160,15 @@ void checkWritable(const std::string& path, const std::string& what) {
   if (access(dir.c_str(), W_OK) != 0)
     throw UsageError(what + ": cannot write in " + dir.string() + ": " + std::strerror(errno));
   if (fs::is_directory(p, ec)) throw UsageError(what + ": " + path + " is a folder; give a file name");
+  removeStaleTemporaries(path);
+  const std::string probe = temporaryName(path);
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    if (errno != EEXIST) throw UsageError(what + ": cannot create a file in " + dir.string() + ": " + std::strerror(errno));
+  } else {
+    ::close(fd);
+    ::unlink(probe.c_str());
+  }
 }
 
 std::string temporaryName(const std::string& output) { return output + ".part" + std::to_string(getpid()); }
@@ -183,7 +193,6 @@ void removeStaleTemporaries(const std::string& output) {
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   checkWritable(path_, path_);
-  removeStaleTemporaries(path_);
   temp_ = temporaryName(path_);
   out_.open(temp_, std::ios::binary | std::ios::trunc);
   if (!out_) throw UsageError(path_ + ": cannot create " + temp_ + ": " + std::strerror(errno));
@@ -215,6 +224,9 @@ int runCommandLine(CLI::App& app, int argc, char** argv, const char* program, co
   }
   try {
     return action();
+  } catch (const Interrupted& e) {
+    std::cerr << program << ": " << e.what() << "\n";
+    return kExitInterrupted;
   } catch (const UsageError& e) {
     std::cerr << program << ": " << e.what() << "\n";
     return kExitBadInput;

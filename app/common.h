@@ -80,7 +80,9 @@ class AtomicFile {
 // Whether two paths name the same file (existing or not): "x.csv" and "./x.csv" do.
 bool samePath(const std::string& a, const std::string& b);
 
-// Makes sure the folder of `path` exists and a file can be created there; throws UsageError.
+// Makes sure the folder of `path` exists and a file can be created there (it creates and removes
+// `path`'s temporary name, so a folder that only looks writable, like /proc, is caught before any
+// work), and removes stale temporaries of `path`; throws UsageError.
 void checkWritable(const std::string& path, const std::string& what);
 
 // SIGINT and SIGTERM set a flag while one of these lives, so that long jobs stop between steps
@@ -93,6 +95,11 @@ class InterruptGuard {
   static int signal();  // the signal received, 0 if none
 };
 constexpr int kExitInterrupted = 130;
+// Thrown where a long job notices the interrupt: runCommandLine prints "PROGRAM: interrupted; no
+// output written" and exits with 130, after the outputs' destructors removed their temporaries.
+struct Interrupted : std::runtime_error {
+  Interrupted() : std::runtime_error("interrupted; no output written") {}
+};
 
 // Progress on stderr for long jobs: frames done, rate, time left. Silent for the first second,
 // when `show` is false (-q) and when stderr is not a terminal (a log file gets no bar).

@@ -28,22 +28,30 @@ CLI::Option* RenderOptions::add(CLI::App& cmd, const std::string& panelsFlags, c
   solver.add(cmd);
   cmd.add_option("--size", size, "Frame size WIDTHxHEIGHT (default " + sizeDefault + ", at most 7680x4320)");
   auto* compare = cmd.add_option(panelsFlags, panels, "Draw 2-4 settings side by side, e.g. a2:m=4,a5:n=4 (see below)");
+  panelsOption_ = compare;
   cmd.get_option("--algo")->excludes(compare);
   cmd.add_option("--camera", camera, "Camera preset of the scene file (default: its first, else a fitted view)");
-  cmd.add_option("--yaw", yaw, "Camera yaw about +Y [degrees], 0 looks along -Z");
-  cmd.add_option("--pitch", pitch, "Camera pitch above the horizon [degrees]")->check(CLI::Range(-89.0, 89.0));
-  cmd.add_option("--distance", distance, "Camera distance from its target [m]")->check(CLI::Range(1e-3, 1e5));
-  cmd.add_option("--fov", fov, "Vertical field of view [degrees]")->check(CLI::Range(5.0, 150.0));
-  cmd.add_option("--target", target, "Camera target x,y,z [m]")->expected(3)->delimiter(',');
+  // Every number finite and in range: NaN passes CLI::Range, and a NaN camera draws a blank frame.
+  cmd.add_option("--yaw", yaw, "Camera yaw about +Y [degrees], 0 looks along -Z")
+      ->check(finiteIn(limits::kDegrees.lo, limits::kDegrees.hi));
+  cmd.add_option("--pitch", pitch, "Camera pitch above the horizon [degrees]")->check(finiteIn(-89.0, 89.0));
+  cmd.add_option("--distance", distance, "Camera distance from its target [m]")
+      ->check(finiteIn(limits::kDistance.lo, limits::kDistance.hi));
+  cmd.add_option("--fov", fov, "Vertical field of view [degrees]")->check(finiteIn(5.0, 150.0));
+  cmd.add_option("--target", target, "Camera target x,y,z [m]")
+      ->expected(3)
+      ->delimiter(',')
+      ->check(finiteIn(limits::kCoordinate.lo, limits::kCoordinate.hi));
   cmd.add_option("--follow", follow, "Keep this body at the centre of the view");
-  cmd.add_option("--orbit", orbit, "Turn the camera about the target [degrees per simulated second]");
+  cmd.add_option("--orbit", orbit, "Turn the camera about the target [degrees per simulated second]")
+      ->check(finiteIn(-1e4, 1e4));
   cmd.add_option("--color,--colour", colour,
                  "Body colours: auto (groups, else bodies), body, group, speed, activity (resting or moving), error "
                  "(constraint error)");
   cmd.add_option("--speed-scale", speedScale, "--color speed: the speed drawn red [m/s] (default 5)")
-      ->check(CLI::Range(1e-9, 1e9));
+      ->check(finiteIn(1e-9, 1e9));
   cmd.add_option("--error-scale", errorScale, "--color error: the error drawn red [m] (default 0.01)")
-      ->check(CLI::Range(1e-12, 1e9));
+      ->check(finiteIn(1e-12, 1e9));
   cmd.add_option("--highlight", highlight, "Bodies to draw with a glow (names, comma separated)")->delimiter(',');
   cmd.add_flag("--contacts", contacts, "Draw contact points and normals");
   cmd.add_flag("--joints", joints, "Draw joint anchors, arms and axes");
@@ -107,6 +115,8 @@ RenderSession RenderOptions::makeSession(std::shared_ptr<const Scene> scene, boo
   // The panels: one, or one per --compare setting over the shared command-line settings.
   const SolverOverrides common = solver.overrides();
   std::vector<PanelSetup> setups;
+  if (panels.empty() && panelsOption_ && panelsOption_->count() > 0)
+    throw UsageError(panelsOption_->get_name() + ": expected 2 to 4 settings, e.g. a2:m=4,a5:n=4, got nothing");
   if (panels.empty()) {
     setups.push_back({resolveSettings(*scene, common), ""});
   } else {
@@ -153,7 +163,7 @@ void RenderOptions::printHeader(const RenderSession& session) const {
 }
 
 void stopIfInterrupted() {
-  if (InterruptGuard::interrupted()) throw std::runtime_error("interrupted; no output written");
+  if (InterruptGuard::interrupted()) throw Interrupted();
 }
 
 void advanceShowingSteps(RenderSession& session, double t, bool quiet) {

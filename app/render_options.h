@@ -27,6 +27,7 @@ struct RenderOptions {
   int samples = 1, shadowSize = 1024;
   std::optional<std::string> antiAliasing;  // --aa; default fxaa without multisampling, none with it
   bool contacts = false, joints = false, noHud = false, quiet = false;
+  CLI::Option* panelsOption_ = nullptr;  // to tell "--compare ''" from no --compare
 
   // Adds the scene (positional), the solver options and the drawing options to `cmd`. The
   // panels' option is named by `panelsFlags` ("--compare,--panels" for render); `sizeDefault`
@@ -46,8 +47,8 @@ struct RenderOptions {
 // WIDTHxHEIGHT, 16x16 to 7680x4320. Throws UsageError naming --size.
 void parseFrameSize(const std::string& size, int& width, int& height);
 
-// After Ctrl-C or SIGTERM (an InterruptGuard lives while frames are made): throws
-// std::runtime_error("interrupted; no output written"), so the sinks remove their temporaries.
+// After Ctrl-C or SIGTERM (an InterruptGuard lives while frames are made): throws Interrupted
+// (exit status 130), so the sinks remove their temporaries on the way out.
 void stopIfInterrupted();
 
 // Steps the session to `t` in half-second chunks with a progress bar over the steps (unless

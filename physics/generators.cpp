@@ -38,6 +38,9 @@ Body makeDynamic(const std::string& name, const Shape& shape, const BodyMaterial
   b.friction = m.friction;
   b.restitution = m.restitution;
   b.group = m.group;
+  b.category = m.category;
+  b.mask = m.mask;
+  b.filterGroup = m.filterGroup;
   if (m.mass)
     setMassFromMass(b, *m.mass);
   else
@@ -146,6 +149,9 @@ void addChain(Scene& scene, const ChainParams& p) {
   anchor.friction = p.material.friction;
   anchor.restitution = p.material.restitution;
   anchor.group = p.material.group;
+  anchor.category = p.material.category;
+  anchor.mask = p.material.mask;
+  anchor.filterGroup = p.material.filterGroup;
   int prev = addBody(scene, anchor, at(p.anchor));
 
   for (int k = 0; k < p.count; ++k) {
@@ -271,6 +277,8 @@ void addRagdoll(Scene& scene, const RagdollParams& p) {
     const std::string prefix = p.name + "_" + std::to_string(k) + "_";
     BodyMaterial m = p.material;
     m.group = p.material.group < 0 ? k : p.material.group * 1000 + k;
+    // Without self-collision each ragdoll is its own negative filter group.
+    if (p.material.filterGroup < 0) m.filterGroup = p.material.filterGroup * 100000 - k;
     std::vector<int> ids;
     for (const Part& part : parts()) {
       BodyMaterial pm = m;

@@ -23,6 +23,8 @@ struct BodyMaterial {
   double friction = 0.5;
   double restitution = 0;
   int group = -1;
+  uint32_t category = 1, mask = 0xFFFFFFFFu;  // collision filtering (model.h)
+  int filterGroup = 0;                         // < 0: the bodies made together never touch each other
 };
 
 // `count` boxes one above the other; `position` is the centre of the bottom face of the bottom

@@ -6,6 +6,7 @@
 #include "physics/math.h"
 
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -49,7 +50,18 @@ struct Body {
   double friction = 0.5;              // Coulomb coefficient μ (pairs use sqrt(μa μb))
   double restitution = 0;             // e (pairs use max(ea, eb))
   int group = -1;                     // bodies made together (a ragdoll, a chain); for colouring
+  // Collision filtering, as Box2D and Bullet have it: two bodies may touch when each one's
+  // category has a bit in the other's mask, and they do not share a negative filter group.
+  uint32_t category = 1;
+  uint32_t mask = 0xFFFFFFFFu;
+  int filterGroup = 0;                // < 0: never touches a body of the same group (a chain's links)
 };
+
+// Whether bodies a and b may touch (the filter; joints' "collide" is the broadphase's business).
+inline bool mayTouch(const Body& a, const Body& b) {
+  if (a.filterGroup < 0 && a.filterGroup == b.filterGroup) return false;
+  return (a.category & b.mask) != 0 && (b.category & a.mask) != 0;
+}
 
 enum class JointType { Ball, Hinge, ConeTwist, Fixed, Spring, Motor };
 const char* jointTypeName(JointType t);

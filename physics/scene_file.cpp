@@ -94,6 +94,8 @@ constexpr Range kFov{0, 180, true, true};             // camera [degrees]
 constexpr Range kQuatComponent{-1e6, 1e6};            // normalised after reading
 constexpr Range kDirection{-1e6, 1e6};                // normalised after reading
 constexpr Range kGroup{0, 1e6};
+constexpr Range kInertia{1e-12, 1e12};                // principal moments [kg m^2]
+constexpr Range kBits{0, 4294967295.0};               // a 32-bit category or mask
 
 class Reader;
 
@@ -191,6 +193,7 @@ class Reader {
   void readBody(const Obj& o, Scene& scene);
   Shape readShape(const Obj& o, bool isStatic, Pose* principal);
   void readMaterial(const Obj& o, BodyMaterial& m, bool isStatic) const;
+  uint32_t bits(const Obj& o, const std::string& key) const;
   void readGenerator(const Obj& o, int index, Scene& scene);
   Quat quaternionAt(const Obj& o, const std::string& key) const;
   void readJoint(const Obj& o, int index, Scene& scene) const;
@@ -338,6 +341,16 @@ void Reader::readMaterial(const Obj& o, BodyMaterial& m, bool isStatic) const {
   m.friction = o.number("friction", limits::kFriction, 0.5);
   m.restitution = o.number("restitution", limits::kRestitution, 0);
   m.group = o.integer("group", 0, static_cast<int>(kGroup.hi), m.group);
+  // Collision filtering (model.h): Box2D's category and mask bits, and a filter group.
+  if (o.has("category")) m.category = bits(o, "category");
+  if (o.has("mask")) m.mask = bits(o, "mask");
+  m.filterGroup = o.integer("filter_group", -1000000, 1000000, m.filterGroup);
+}
+
+uint32_t Reader::bits(const Obj& o, const std::string& key) const {
+  const double x = o.number(key, kBits);
+  if (x != std::floor(x)) fail(o.at(key), "expected an integer in [0, 4294967295] (a bit mask), got " + numberText(x));
+  return static_cast<uint32_t>(x);
 }
 
 LoadedMesh Reader::mesh(const Obj& o, bool convex, double scale) {
@@ -421,8 +434,8 @@ Shape Reader::readShape(const Obj& o, bool isStatic, Pose* principal) {
 }
 
 void Reader::readBody(const Obj& o, Scene& scene) {
-  o.allow({"name", "shape", "position", "orientation", "velocity", "angular_velocity", "mass", "density", "static",
-           "friction", "restitution", "group"});
+  o.allow({"name", "shape", "position", "orientation", "velocity", "angular_velocity", "mass", "density", "inertia",
+           "static", "friction", "restitution", "group", "category", "mask", "filter_group"});
   Body b;
   b.name = o.string("name");
   claimName(b.name, o.at("name"), o.path());
@@ -436,6 +449,9 @@ void Reader::readBody(const Obj& o, Scene& scene) {
   b.friction = m.friction;
   b.restitution = m.restitution;
   b.group = m.group;
+  b.category = m.category;
+  b.mask = m.mask;
+  b.filterGroup = m.filterGroup;
 
   Pose principal;  // identity but for convex meshes
   b.shape = readShape(Obj(*this, o.need("shape"), o.at("shape")), b.isStatic, &principal);
@@ -451,6 +467,21 @@ void Reader::readBody(const Obj& o, Scene& scene) {
       setMassFromDensity(b, m.density);
   } catch (const std::invalid_argument& e) {
     fail(o.at("shape"), e.what());
+  }
+  if (o.has("inertia")) {
+    // Principal moments along the shape's own axes, for a scene that models a reference which
+    // states them (a physical pendulum); the mass must be given too.
+    if (b.isStatic) fail(o.at("inertia"), "static bodies take no inertia (remove \"inertia\")");
+    if (!m.mass) fail(o.at("inertia"), "give the body's \"mass\" with its inertia");
+    const Vec3 I = o.vec3("inertia", kInertia);
+    for (int k = 0; k < 3; ++k) {  // the triangle inequality of principal moments
+      const double other = I[(k + 1) % 3] + I[(k + 2) % 3];
+      if (I[k] > other * (1 + 1e-9))
+        fail(o.at("inertia"), "principal moments " + numberText(I.x()) + ", " + numberText(I.y()) + ", " +
+                                  numberText(I.z()) + " are no rigid body's: each must be at most the sum of the other two");
+    }
+    b.inertia = I;
+    b.invInertia = I.cwiseInverse();
   }
   if (!b.isStatic && !limits::kMass.contains(b.mass))
     fail(o.has("density") ? o.at("density") : o.at("shape"),
@@ -479,17 +510,26 @@ Quat Reader::quaternionAt(const Obj& o, const std::string& key) const {
 
 void Reader::readGenerator(const Obj& o, int index, Scene& scene) {
   const std::string type = oneOf(o, "type", kGeneratorTypes, "generator type");
-  std::vector<std::string> keys = {"type", "name", "mass", "density", "friction", "restitution", "group"};
+  std::vector<std::string> keys = {"type",  "name", "mass",     "density",     "friction",
+                                   "restitution", "group", "category", "mask", "filter_group"};
   if (type == "stack") keys.insert(keys.end(), {"count", "half_extents", "position", "gap"});
   if (type == "pyramid") keys.insert(keys.end(), {"levels", "half_extents", "position", "gap"});
-  if (type == "chain") keys.insert(keys.end(), {"count", "link", "anchor", "direction", "spacing", "joint"});
+  if (type == "chain")
+    keys.insert(keys.end(), {"count", "link", "anchor", "direction", "spacing", "joint", "anchor_radius", "self_collision"});
   if (type == "ragdoll")
-    keys.insert(keys.end(), {"count", "columns", "position", "orientation", "offset", "spread", "yaw", "velocity", "scale"});
+    keys.insert(keys.end(),
+                {"count", "columns", "position", "orientation", "offset", "spread", "yaw", "velocity", "scale", "self_collision"});
   o.allow(keys);
 
   BodyMaterial m;
   m.group = index;
   readMaterial(o, m, false);
+  // Without self-collision the bodies of a chain (or each ragdoll) never touch each other; with
+  // it (the default) only jointed neighbours do not, unless their joint says they may.
+  if (!o.boolean("self_collision", true)) {
+    if (o.has("filter_group")) fail(o.at("self_collision"), "give either \"self_collision\" or \"filter_group\"");
+    m.filterGroup = -(index + 1);
+  }
   const std::string name = o.string("name", type + std::to_string(index));
   checkName(name, o.has("name") ? o.at("name") : o.path());
   auto halfExtents = [&] { return o.vec3("half_extents", limits::kSize); };
@@ -553,6 +593,7 @@ void Reader::readGenerator(const Obj& o, int index, Scene& scene) {
       p.anchor = o.vec3("anchor", limits::kCoordinate);
       p.direction = o.unit("direction", Vec3::UnitX());
       p.spacing = o.number("spacing", limits::kSize);
+      p.anchorRadius = o.number("anchor_radius", limits::kSize, p.anchorRadius);
       const std::string joint = o.string("joint", "ball");
       if (joint == "ball")
         p.joint = JointType::Ball;

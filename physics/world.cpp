@@ -185,6 +185,21 @@ const StepReport& World::step() {
   return report_;
 }
 
+void World::applyImpulse(int body, const Vec3& impulse, const Vec3& worldPoint) {
+  if (body < 0 || body >= static_cast<int>(model_.bodies.size()))
+    throw std::invalid_argument("applyImpulse: no body " + std::to_string(body));
+  const Body& b = model_.bodies[static_cast<size_t>(body)];
+  if (b.isStatic) throw std::invalid_argument("applyImpulse: body \"" + b.name + "\" is static");
+  if (!allFinite(impulse) || !allFinite(worldPoint)) throw std::invalid_argument("applyImpulse: not finite");
+  BodyState& s = state_.bodies[static_cast<size_t>(body)];
+  s.v += b.invMass * impulse;
+  s.w += b.invInertia.cwiseProduct(s.q.conjugate() * (worldPoint - s.x).cross(impulse));  // v̌: body frame
+}
+
+RayHit World::raycast(const Vec3& origin, const Vec3& direction, double maxDistance, bool dynamicOnly) const {
+  return substep::raycast(model_, state_, origin, direction, maxDistance, dynamicOnly);
+}
+
 double World::kineticEnergy() const {
   double e = 0;
   for (size_t i = 0; i < state_.bodies.size(); ++i) {

@@ -9,6 +9,7 @@
 #include "physics/collision/broadphase.h"
 #include "physics/collision/manifold.h"
 #include "physics/collision/narrowphase.h"
+#include "physics/collision/raycast.h"
 #include "physics/constraints/constraint_set.h"
 #include "physics/model.h"
 #include "physics/settings.h"
@@ -70,6 +71,12 @@ class World {
   const ConstraintSet& constraints() const { return constraints_; }
   const StepReport& lastReport() const { return report_; }
   const StageTimes& totalTimes() const { return total_; }
+
+  // Between steps: an impulse [N s] at a world point on a dynamic body (a user's push), or the
+  // nearest body a ray meets (physics/collision/raycast.h). Throws std::invalid_argument for a
+  // static body or a non-finite impulse.
+  void applyImpulse(int body, const Vec3& impulse, const Vec3& worldPoint);
+  RayHit raycast(const Vec3& origin, const Vec3& direction, double maxDistance, bool dynamicOnly = true) const;
 
   // Measures of the current state.
   double kineticEnergy() const;    // Σ ½ m |v|² + ½ v̌ᵀ I v̌ [J]

@@ -3,6 +3,8 @@
 #include "physics/collision/broadphase.h"
 #include "physics/collision/manifold.h"
 #include "physics/collision/narrowphase.h"
+#include "physics/collision/raycast.h"
+#include "physics/scene_file.h"
 
 #include <fcl/narrowphase/collision.h>
 #include <fcl/narrowphase/distance.h>
@@ -416,4 +418,52 @@ TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
   EXPECT_GT(reported, 300);
   EXPECT_GT(dropped, 300);
   EXPECT_GT(compared, 30);
+}
+
+// Rays against every shape in closed form (the server's picking), checked against the distances
+// that geometry gives, from outside, from inside, and past a body.
+TEST(Raycast, EveryShapeAtItsKnownDistance) {
+  const Scene s = parseScene(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "plane"}},
+      {"name": "ball", "shape": {"type": "sphere", "radius": 0.5}, "position": [0, 2, 0]},
+      {"name": "box", "shape": {"type": "box", "half_extents": [0.5, 0.25, 0.5]}, "position": [3, 2, 0],
+       "orientation": [0.92387953, 0, 0.38268343, 0]},
+      {"name": "capsule", "shape": {"type": "capsule", "radius": 0.25, "half_height": 0.5}, "position": [6, 2, 0]},
+      {"name": "cylinder", "shape": {"type": "cylinder", "radius": 0.25, "half_height": 0.5}, "position": [9, 2, 0]},
+      {"name": "gem", "shape": {"type": "convex", "file": "../meshes/gem.obj"}, "position": [12, 2, 0]}]})",
+                             "<rays>", SUBSTEP_SOURCE_DIR "/assets/scenes");
+  const Model& m = s.model;
+  const State& st = s.initial;
+  auto down = [&](double x) { return raycast(m, st, Vec3(x, 10, 0), Vec3(0, -1, 0), 100); };
+  RayHit h = down(0);
+  EXPECT_EQ(h.body, 1);
+  EXPECT_NEAR(h.distance, 10 - 2.5, 1e-12);
+  EXPECT_NEAR(h.normal.y(), 1, 1e-12);
+  h = down(3);  // a box turned about Y: its top face still at y = 2.25
+  EXPECT_EQ(h.body, 2);
+  EXPECT_NEAR(h.distance, 10 - 2.25, 1e-9);
+  h = down(6);  // the capsule stands along Y: its top hemisphere at 2 + 0.5 + 0.25
+  EXPECT_EQ(h.body, 3);
+  EXPECT_NEAR(h.distance, 10 - 2.75, 1e-12);
+  h = down(6.2);  // off its axis, the hemisphere lower: sqrt(0.25² - 0.2²) = 0.15 above the segment
+  EXPECT_NEAR(h.distance, 10 - 2.65, 1e-12);
+  h = down(9.2);  // a cylinder's flat cap
+  EXPECT_EQ(h.body, 4);
+  EXPECT_NEAR(h.distance, 10 - 2.5, 1e-12);
+  h = down(12);
+  EXPECT_EQ(h.body, 5);
+  h = down(20);  // nothing but the ground plane
+  EXPECT_EQ(h.body, 0);
+  EXPECT_NEAR(h.distance, 10, 1e-12);
+  EXPECT_EQ(raycast(m, st, Vec3(20, 10, 0), Vec3(0, -1, 0), 100, true).body, -1);  // dynamic bodies only
+  EXPECT_EQ(raycast(m, st, Vec3(0, 10, 0), Vec3(0, 1, 0), 100).body, -1);          // pointing away
+  EXPECT_EQ(raycast(m, st, Vec3(0, 10, 0), Vec3(0, -1, 0), 5).body, -1);           // too far
+  h = raycast(m, st, Vec3(0, 2, 0), Vec3(1, 0, 0), 100);  // from inside the ball
+  EXPECT_EQ(h.body, 1);
+  EXPECT_EQ(h.distance, 0);
+  // Sideways into the capsule's side.
+  h = raycast(m, st, Vec3(6, 2.3, -5), Vec3(0, 0, 1), 100);
+  EXPECT_EQ(h.body, 3);
+  EXPECT_NEAR(h.distance, 5 - 0.25, 1e-12);
+  EXPECT_NEAR(h.normal.z(), -1, 1e-12);
 }

@@ -80,6 +80,21 @@ TEST(RenderCli, BadArgumentsExitWithStatus2AndWriteNothing) {
       {"assets/scenes/stack.json --samples 3 -o " + png, "--samples"},
       {"assets/scenes/no_such.json -o " + png, "cannot open"},
       {"tests/data/bad/negative_mass.json -o " + png, "bodies[0].mass"},
+      // Non-finite and absurd numbers: NaN passes a range check, and a NaN camera draws a blank frame.
+      {"assets/scenes/stack.json --yaw nan -o " + png, "--yaw: expected a number"},
+      {"assets/scenes/stack.json --yaw inf -o " + png, "--yaw: expected a number"},
+      {"assets/scenes/stack.json --target nan,nan,nan -o " + png, "--target: expected a number"},
+      {"assets/scenes/stack.json --target 1e308,0,0 -o " + png, "--target: expected a number in [-100000, 100000]"},
+      {"assets/scenes/stack.json --orbit nan -o " + png, "--orbit: expected a number"},
+      {"assets/scenes/stack.json --distance nan -o " + png, "--distance"},
+      {"assets/scenes/stack.json --pitch nan -o " + png, "--pitch"},
+      {"assets/scenes/stack.json --speed-scale inf -o " + png, "--speed-scale"},
+      {"assets/scenes/stack.json --kappa nan --algo a5 -o " + png, "--kappa"},
+      {"assets/scenes/stack.json --compare '' -o " + png, "--compare: expected 2 to 4 settings"},
+      {"assets/scenes/stack.json --preset '' --algo a5 -o " + png, "--preset"},
+      // A video into a folder that only looks writable fails before any frame, as a PNG does.
+      {"assets/scenes/stack.json --seconds 0.1 -o /proc/x.mp4", "-o /proc/x.mp4: cannot create a file in /proc"},
+      {"assets/scenes/stack.json -o /proc/x.png", "/proc"},
   };
   for (const auto& [args, fragment] : cases) {
     const Outcome r = run("render " + args);
@@ -198,6 +213,18 @@ TEST(RenderCli, DivergenceStopsWithStatus3AndNoFile) {
 }
 
 // ffmpeg failing: a clear message, exit status 1, and the partial file removed.
+// Ctrl-C during a render: exit status 130, "interrupted", no output and no temporary left.
+TEST(RenderCli, InterruptLeavesNothingBehind) {
+  const fs::path d = scratch();
+  for (const std::string out : {"v.mp4", "frames"}) {
+    const Outcome r = substep_test::runShell("(" SUBSTEP_EXE " render assets/scenes/pyramid.json --seconds 60 --size 320x180 -q -o " +
+                                             (d / out).string() + " & pid=$!; sleep 2; kill -INT $pid; wait $pid)");
+    EXPECT_EQ(r.status, 130) << out << "\n" << r.output;
+    EXPECT_NE(r.output.find("interrupted; no output written"), std::string::npos) << r.output;
+  }
+  EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+}
+
 TEST(RenderCli, FailingFfmpegLeavesNothingBehind) {
   const fs::path d = scratch(), f = d / "v.mp4";
   const Outcome r = run("render assets/scenes/stack.json --seconds 1 --size 160x90 -o " + f.string(),

@@ -711,3 +711,31 @@ TEST(Generators, RagdollBodiesJointsAndLayout) {
   EXPECT_NE(s.model.bodies[static_cast<size_t>(pelvis)].group,
             s.model.bodies[static_cast<size_t>(s.model.bodyIndex("r_1_pelvis"))].group);
 }
+
+// Collision filtering, a given inertia and the chain's anchor size, as scene keys.
+TEST(SceneFrames, FilteringInertiaAndAnchorSize) {
+  const Scene s = parse(scene(R"({"name": "a", "shape": {"type": "box", "half_extents": [0.1, 0.2, 0.3]}, "mass": 2,
+      "inertia": [0.1, 0.2, 0.25], "category": 4, "mask": 4, "filter_group": -3})",
+                              R"("generators": [{"type": "chain", "count": 3, "anchor": [0, 5, 0], "spacing": 0.5,
+      "link": {"type": "sphere", "radius": 0.1}, "anchor_radius": 0.2, "self_collision": false}])"));
+  const Body& a = s.model.bodies[0];
+  EXPECT_EQ(a.inertia, Vec3(0.1, 0.2, 0.25));
+  EXPECT_EQ(a.invInertia, Vec3(10, 5, 4));
+  EXPECT_EQ(a.mass, 2);
+  EXPECT_EQ(a.category, 4u);
+  EXPECT_EQ(a.mask, 4u);
+  EXPECT_EQ(a.filterGroup, -3);
+  const int anchor = s.model.bodyIndex("chain0_anchor"), link = s.model.bodyIndex("chain0_1");
+  EXPECT_EQ(s.model.bodies[static_cast<size_t>(anchor)].shape.radius, 0.2);
+  EXPECT_LT(s.model.bodies[static_cast<size_t>(link)].filterGroup, 0);
+  EXPECT_FALSE(mayTouch(s.model.bodies[static_cast<size_t>(link)], s.model.bodies[static_cast<size_t>(link + 1)]));
+  EXPECT_FALSE(mayTouch(s.model.bodies[static_cast<size_t>(link)], s.model.bodies[0]));  // a's mask 4 lacks category 1
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "inertia": [1, 1, 1]})"),
+              "bodies[0].inertia", {"give the body's \"mass\""});
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "mass": 1, "inertia": [1, 1, 3]})"),
+              "bodies[0].inertia", {"at most the sum of the other two"});
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "mask": 1.5})"), "bodies[0].mask",
+              {"a bit mask"});
+  expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "category": -1})"), "bodies[0].category",
+              {"in [0, 4294967295]"});
+}

@@ -23,7 +23,9 @@ struct PairCollector {
 
 bool admitted(const PairCollector& c, int i, int j) {
   if (i > j) std::swap(i, j);
-  if (c.model->bodies[static_cast<size_t>(i)].isStatic && c.model->bodies[static_cast<size_t>(j)].isStatic) return false;
+  const Body& bi = c.model->bodies[static_cast<size_t>(i)];
+  const Body& bj = c.model->bodies[static_cast<size_t>(j)];
+  if ((bi.isStatic && bj.isStatic) || !mayTouch(bi, bj)) return false;
   if (std::binary_search(c.excluded->begin(), c.excluded->end(), std::make_pair(i, j))) return false;
   c.pairs->emplace_back(i, j);
   return true;

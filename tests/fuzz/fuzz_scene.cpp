@@ -39,7 +39,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } catch (const std::exception& e) {
     finding("parse", e.what());
   }
-  for (Algorithm a : {Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5}) {
+  for (Algorithm a : {Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5, Algorithm::Soft}) {
     SolverOverrides o = scene.solver;
     o.algorithm = a;
     SolverSettings settings;
