@@ -23,6 +23,19 @@ struct Pose {
   Vec3 unrotate(const Vec3& world) const { return q.conjugate() * world; }
 };
 
+// A Pose with its rotation as a matrix: for formulation, which rotates every contact point's
+// arms, normal and Jacobian five times; R v costs 15 flops where q v costs about 30.
+struct Frame {
+  Vec3 p = Vec3::Zero();
+  Mat3 R = Mat3::Identity();
+
+  Frame() = default;
+  Frame(const Pose& pose) : p(pose.p), R(pose.q.toRotationMatrix()) {}  // NOLINT: implicit on purpose
+  Vec3 apply(const Vec3& local) const { return R * local + p; }
+  Vec3 rotate(const Vec3& local) const { return R * local; }
+  Vec3 unrotate(const Vec3& world) const { return R.transpose() * world; }
+};
+
 // The report's R_q(a): the unit quaternion of the rotation vector a (axis a/|a|, angle |a|).
 // Exact exponential map; near zero the series keeps it smooth and unit length.
 inline Quat Rq(const Vec3& a) {

@@ -84,6 +84,8 @@ bool World::geometry() {
   }
   manifolds_.beginStep();
   report_.cachedPairs = 0;
+  frames_.resize(state_.bodies.size());
+  for (size_t i = 0; i < state_.bodies.size(); ++i) frames_[i] = state_.bodies[i].pose();
   ContactPatch patch;
   for (const auto& [i, j] : pairs_) {
     // A plane or triangle mesh is always B, so the normal points out of it.
@@ -96,7 +98,7 @@ bool World::geometry() {
     // A pair that has barely moved relative to itself since its points were found keeps them.
     const Manifold* old = manifolds_.previous(a, b);
     if (old && pairShift(*old, pA, pB) < kPairCacheShift) {
-      manifolds_.reuse(*old, pA, pB);
+      manifolds_.reuse(*old, frames_[static_cast<size_t>(a)], frames_[static_cast<size_t>(b)]);
       ++report_.cachedPairs;
       continue;
     }

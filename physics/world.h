@@ -101,6 +101,7 @@ class World {
   std::vector<std::pair<int, int>> pairs_;
   std::vector<double> reach_;  // per body: how far it can get this step, plus half the margin [m]
   std::vector<Vec3> approachV_;  // per body: the velocity restitution measures approach speeds with
+  std::vector<Frame> frames_;    // per body: its pose with a rotation matrix, for the manifold cache
   StepReport report_;
   StageTimes total_;
 };

@@ -135,9 +135,9 @@ void Broadphase::update(const State& state, const std::vector<double>& reach, co
     manager_.setup();
     registered_ = true;
   } else if (!movedList_.empty()) {
-    std::vector<fcl::CollisionObjectd*> moved;
-    for (const int i : movedList_) moved.push_back(objects_[static_cast<size_t>(i)].get());
-    manager_.update(moved);
+    movedObjects_.clear();
+    for (const int i : movedList_) movedObjects_.push_back(objects_[static_cast<size_t>(i)].get());
+    manager_.update(movedObjects_);
   }
 }
 
@@ -158,10 +158,9 @@ bool Broadphase::findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPa
     }
     std::sort(found_.begin(), found_.end());
     found_.erase(std::unique(found_.begin(), found_.end()), found_.end());
-    std::vector<std::pair<int, int>> merged;
-    merged.reserve(candidates_.size() + found_.size());
-    std::set_union(candidates_.begin(), candidates_.end(), found_.begin(), found_.end(), std::back_inserter(merged));
-    candidates_.swap(merged);
+    merged_.clear();
+    std::set_union(candidates_.begin(), candidates_.end(), found_.begin(), found_.end(), std::back_inserter(merged_));
+    candidates_.swap(merged_);
     movedList_.clear();
   }
   for (const auto& pr : candidates_)

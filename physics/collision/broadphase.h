@@ -69,7 +69,10 @@ class Broadphase {
   fcl::DynamicAABBTreeCollisionManagerd manager_;
   std::vector<std::pair<int, int>> excluded_;    // sorted joint pairs that do not collide
   std::vector<std::pair<int, int>> candidates_;  // sorted pairs whose fat boxes overlap
-  std::vector<std::pair<int, int>> found_;       // scratch: new candidates of moved bodies
+  // Scratch, kept so that a settled step allocates nothing: new candidates of moved bodies, the
+  // merged list, the moved bodies' tree objects.
+  std::vector<std::pair<int, int>> found_, merged_;
+  std::vector<fcl::CollisionObjectd*> movedObjects_;
 };
 
 }  // namespace substep

@@ -42,7 +42,7 @@ const Manifold* ManifoldCache::previous(int a, int b) {
   return nullptr;
 }
 
-void ManifoldCache::reuse(const Manifold& old, const Pose& poseA, const Pose& poseB) {
+void ManifoldCache::reuse(const Manifold& old, const Frame& poseA, const Frame& poseB) {
   Manifold m = old;  // detection pose kept: the shift is measured from there, so it cannot creep
   for (int i = 0; i < m.count; ++i) {
     ManifoldPoint& p = m.points[i];

@@ -63,7 +63,7 @@ class ManifoldCache {
   const Manifold* previous(int a, int b);
   // Keeps last step's manifold `old` for this step: same points on the bodies, depths measured at
   // the current poses, ages advanced, impulses kept. Call in the pair order of add().
-  void reuse(const Manifold& old, const Pose& poseA, const Pose& poseB);
+  void reuse(const Manifold& old, const Frame& poseA, const Frame& poseB);
   const std::vector<Manifold>& manifolds() const { return current_; }
   std::vector<Manifold>& manifolds() { return current_; }
   void clear();

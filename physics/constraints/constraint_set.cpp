@@ -2,7 +2,7 @@
 
 #include "physics/constraints/joints.h"
 
-#include <Eigen/LU>
+#include <cmath>
 #include <algorithm>
 #include <stdexcept>
 
@@ -61,9 +61,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // Per manifold: its points' normal rows, then its three friction rows.
   contactFirstRow = static_cast<int>(rows.size());
   frictions.clear();
+  frames_.assign(poses.begin(), poses.end());
   for (const Manifold& m : manifolds) {
-    const Pose& A = poses[static_cast<size_t>(m.a)];
-    const Pose& B = poses[static_cast<size_t>(m.b)];
+    const Frame& A = frames_[static_cast<size_t>(m.a)];
+    const Frame& B = frames_[static_cast<size_t>(m.b)];
     FrictionDef f;
     f.a = m.a;
     f.b = m.b;
@@ -97,7 +98,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     f.localN = normalSum.normalized();
     for (int k = 0; k < m.count; ++k) f.radius += (m.points[k].localA - f.localA).norm() / m.count;
     f.row = static_cast<int>(rows.size());
-    f.qB = B.q;
+    f.qB = poses[static_cast<size_t>(m.b)].q;
     rows.resize(rows.size() + 3);
     Row* fr = &rows[static_cast<size_t>(f.row)];
     formulateFriction(f, A, B, fr, false);
@@ -131,7 +132,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   };
   auto frictionUnits = [&] {
     for (const FrictionDef& f : frictions)
-      for (int k = 0; k < 3; ++k) units.push_back(SolveUnit{f.row + k, 1});
+      units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction});
   };
   if (settings.warmStart) {
     frictionUnits();
@@ -153,6 +154,46 @@ void ConstraintSet::formulateJoint(const JointRef& ref, const std::vector<Pose>&
                           &rows[static_cast<size_t>(ref.first)], jacobianOnly);
 }
 
+namespace {
+
+// The inverse of the leading n x n block of a symmetric positive definite K (n <= 4) by
+// Cholesky, the rest of inv the identity; false if K is not positive definite to working
+// precision.
+bool invertSpd(const Eigen::Matrix4d& K, int n, Eigen::Matrix4d& inv) {
+  double L[4][4] = {};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double s = K(i, j);
+      for (int k = 0; k < j; ++k) s -= L[i][k] * L[j][k];
+      if (i == j) {
+        if (!(s > 1e-14 * K(i, i))) return false;
+        L[i][i] = std::sqrt(s);
+      } else {
+        L[i][j] = s / L[j][j];
+      }
+    }
+  // L⁻¹ (lower triangular), then K⁻¹ = L⁻ᵀ L⁻¹.
+  double M[4][4] = {};
+  for (int i = 0; i < n; ++i) {
+    M[i][i] = 1 / L[i][i];
+    for (int j = 0; j < i; ++j) {
+      double s = 0;
+      for (int k = j; k < i; ++k) s -= L[i][k] * M[k][j];
+      M[i][j] = s / L[i][i];
+    }
+  }
+  inv.setIdentity();
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double s = 0;
+      for (int k = i; k < n; ++k) s += M[k][i] * M[k][j];
+      inv(i, j) = inv(j, i) = s;
+    }
+  return true;
+}
+
+}  // namespace
+
 void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale) {
   for (int i = firstRow; i < lastRow; ++i) {
     Row& r = rows[static_cast<size_t>(i)];
@@ -161,8 +202,11 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
     finishRow(r, mass[static_cast<size_t>(r.a)], mass[static_cast<size_t>(r.b)],
               r.velocityTarget && motorUnscaled_ ? 1.0 : applyScale);
   }
+  // A block's rows share their two bodies (one joint part, one manifold), so its Γ entries are
+  // J̌ᵢ · M̌⁻¹J̌ₖᵀ with the latter already in the rows (scaled by applyScale: undone here).
   for (SolveUnit& u : units) {
-    if (u.kind == SolveUnit::Single || u.first < firstRow || u.first >= lastRow) continue;
+    if (u.kind == SolveUnit::Single || u.kind == SolveUnit::Friction || u.first < firstRow || u.first >= lastRow)
+      continue;
     if (u.block < 0) {
       u.block = static_cast<int>(blocks.size());
       blocks.emplace_back();
@@ -170,21 +214,22 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
     BlockData& d = blocks[static_cast<size_t>(u.block)];
     // K = block of Γ = J̌ M̌⁻¹ J̌ᵀ (unscaled, as the effective mass of single rows).
     d.K.setZero();
-    for (int i = 0; i < u.size; ++i)
-      for (int k = i; k < u.size; ++k)  // symmetric
+    const Row* b = &rows[static_cast<size_t>(u.first)];
+    for (int k = 0; k < u.size; ++k) {
+      const double scale = b[k].velocityTarget && motorUnscaled_ ? 1.0 : applyScale;
+      for (int i = 0; i <= k; ++i)  // symmetric
         d.K(i, k) = d.K(k, i) =
-            gammaEntry(rows[static_cast<size_t>(u.first + i)], rows[static_cast<size_t>(u.first + k)], mass.data());
+            scale > 0 ? (b[i].linA.dot(b[k].mLinA) + b[i].angA.dot(b[k].mAngA) + b[i].linB.dot(b[k].mLinB) +
+                         b[i].angB.dot(b[k].mAngB)) / scale
+                      : gammaEntry(b[i], b[k], mass.data());
+    }
     Eigen::Matrix4d K = d.K;
-    for (int i = u.size; i < 4; ++i) K(i, i) = 1;  // pad to an invertible 4x4
     if (u.kind == SolveUnit::Contact) {
       // Four coplanar points make K singular (rank 3): regularise slightly, so the full set's
       // answer is the even, minimum-norm one.
       for (int i = 0; i < u.size; ++i) K(i, i) *= 1 + 1e-4;
     }
-    bool ok = false;
-    double det = 0;
-    K.computeInverseAndDetWithCheck(d.invK, det, ok, 1e-300);
-    if (!ok) d.invK.setZero();
+    if (!invertSpd(K, u.size, d.invK)) d.invK.setZero();
   }
 }
 
@@ -193,10 +238,11 @@ void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vecto
   const bool jacobianOnly = what == Refresh::JointJacobians;  // Joints: β too
   for (const JointRef& ref : joints) formulateJoint(ref, poses, h, jacobianOnly);
   if (what == Refresh::All) {
+    frames_.assign(poses.begin(), poses.end());
     for (const ContactDef& c : contacts) {
       Row& r = rows[static_cast<size_t>(c.row)];
       const double hi = r.hi;
-      formulateContact(c, poses[static_cast<size_t>(c.a)], poses[static_cast<size_t>(c.b)], h, slop_, r, false);
+      formulateContact(c, frames_[static_cast<size_t>(c.a)], frames_[static_cast<size_t>(c.b)], h, slop_, r, false);
       r.hi = hi;  // a point held inactive (no speculative points) stays so for the step
       r.bias -= r.split;  // the step's split-off position error stays with the position solve
     }
@@ -204,7 +250,7 @@ void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vecto
       f.qB = poses[static_cast<size_t>(f.b)].q;
       Row* fr = &rows[static_cast<size_t>(f.row)];
       const bool level = fr[0].velocityLevel;
-      formulateFriction(f, poses[static_cast<size_t>(f.a)], poses[static_cast<size_t>(f.b)], fr, false);
+      formulateFriction(f, frames_[static_cast<size_t>(f.a)], frames_[static_cast<size_t>(f.b)], fr, false);
       for (int k = 0; k < 3; ++k) fr[k].velocityLevel = level;
     }
     finish(0, static_cast<int>(rows.size()), mass, applyScale);

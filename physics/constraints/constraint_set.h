@@ -63,6 +63,7 @@ class ConstraintSet {
   bool stableBlocks_ = false, contactBlocks_ = false, speculative_ = true, motorUnscaled_ = true;
   std::vector<double> jointLambda_;  // per joint row, last step's impulses
   std::vector<int> jointLambdaFirst_;
+  std::vector<Frame> frames_;  // the poses contacts are formulated at, as rotation matrices
 };
 
 }  // namespace substep

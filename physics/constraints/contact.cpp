@@ -4,11 +4,11 @@
 
 namespace substep {
 
-double contactGap(const ContactDef& c, const Pose& A, const Pose& B) {
+double contactGap(const ContactDef& c, const Frame& A, const Frame& B) {
   return (A.apply(c.localA) - B.apply(c.localB)).dot(B.rotate(c.localN));
 }
 
-void formulateContact(const ContactDef& c, const Pose& A, const Pose& B, double h, double slop, Row& row,
+void formulateContact(const ContactDef& c, const Frame& A, const Frame& B, double h, double slop, Row& row,
                       bool jacobianOnly) {
   const Vec3 pa = A.apply(c.localA), pb = B.apply(c.localB);
   const Vec3 n = B.rotate(c.localN);
@@ -22,7 +22,7 @@ void formulateContact(const ContactDef& c, const Pose& A, const Pose& B, double 
   row.hi = kInfinity;
 }
 
-void formulateFriction(const FrictionDef& f, const Pose& A, const Pose& B, Row* rows, bool jacobianOnly) {
+void formulateFriction(const FrictionDef& f, const Frame& A, const Frame& B, Row* rows, bool jacobianOnly) {
   const Vec3 n = B.rotate(f.localN);
   // Both bodies' impulses act at one point, so friction conserves angular momentum exactly.
   const Vec3 c = 0.5 * (A.apply(f.localA) + B.apply(f.localB));

@@ -46,13 +46,13 @@ struct FrictionDef {
 };
 
 // (pa - pb)·n at the given poses: negative when penetrating [m].
-double contactGap(const ContactDef& c, const Pose& A, const Pose& B);
+double contactGap(const ContactDef& c, const Frame& A, const Frame& B);
 
 // The normal row at poses A, B for time step h. jacobianOnly keeps the bias (A4/A5 update it
 // by the report's rule instead).
-void formulateContact(const ContactDef& c, const Pose& A, const Pose& B, double h, double slop, Row& row,
+void formulateContact(const ContactDef& c, const Frame& A, const Frame& B, double h, double slop, Row& row,
                       bool jacobianOnly);
 // The three friction rows of a manifold.
-void formulateFriction(const FrictionDef& f, const Pose& A, const Pose& B, Row* rows, bool jacobianOnly);
+void formulateFriction(const FrictionDef& f, const Frame& A, const Frame& B, Row* rows, bool jacobianOnly);
 
 }  // namespace substep

@@ -11,8 +11,9 @@ namespace substep {
 //   C = (pA - pB)·u,  Ċ = u·vA + (rA×u)·ωA - u·vB - (rB×u)·ωB
 //   J̌ = (u, R_A⁻¹(rA×u), -u, -R_B⁻¹(rB×u))     (report III.1: rotational parts k -> R⁻¹k)
 // rA = pA - xA and rB = pB - xB are the world arms σ of the report's IV.3.1.1.
-inline void axisRow(Row& r, int a, int b, const Pose& A, const Pose& B, const Vec3& rA, const Vec3& rB,
-                    const Vec3& u) {
+// P: a Pose or a Frame (anything with unrotate).
+template <class P>
+inline void axisRow(Row& r, int a, int b, const P& A, const P& B, const Vec3& rA, const Vec3& rB, const Vec3& u) {
   r.a = a;
   r.b = b;
   r.linA = u;
@@ -23,7 +24,8 @@ inline void axisRow(Row& r, int a, int b, const Pose& A, const Pose& B, const Ve
 
 // Angle part: the relative angular velocity about a world axis u.
 //   Ċ = u·(ωA - ωB),  J̌ = (0, R_A⁻¹u, 0, -R_B⁻¹u)
-inline void angleRow(Row& r, int a, int b, const Pose& A, const Pose& B, const Vec3& u) {
+template <class P>
+inline void angleRow(Row& r, int a, int b, const P& A, const P& B, const Vec3& u) {
   r.a = a;
   r.b = b;
   r.linA.setZero();

@@ -43,9 +43,11 @@ struct Row {
 // Rows solved together: the report's "block constraint x" of proc3:10. A single row with its
 // bounds; an unbounded 'stable' block (2 or 3 rows), solved by inverting its block of
 // Γ = J̌M̌⁻¹J̌ᵀ (IV.2.2 item 2); or a contact block, the normal rows of one manifold (up to 4),
-// solved as the small MLCP it is (λ >= 0).
+// solved as the small MLCP it is (λ >= 0). A manifold's three friction rows are a Friction unit:
+// solved row after row exactly as three singles, with their two bodies' velocities and the
+// normals' Σλ that bounds them read once.
 struct SolveUnit {
-  enum Kind : unsigned char { Single, Stable, Contact };
+  enum Kind : unsigned char { Single, Stable, Contact, Friction };
   int first = 0;
   int size = 1;
   Kind kind = Single;

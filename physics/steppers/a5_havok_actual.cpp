@@ -67,11 +67,12 @@ class HavokActualStepper final : public Stepper {
       startSubStepImpulses(c, j);
       for (const Refreshed& f : refresh_) {
         Row& r = cs.rows[f.row];
-        const double shift = rowVelocity(r, sumV_.data(), sumW_.data());  // J̌šʲ
+        // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step.
+        const double shift = j > 0 ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;  // J̌šʲ
         if (f.kind == Refresh::Target) {
           r.bias = f.base + shift;
         } else {
-          const double beta = f.base - rowVelocity(r, rawV_.data(), rawW_.data());  // βʲ by the update rule
+          const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
           r.bias = (beta < 0 ? beta : tau * beta) / kappa + shift;
         }
       }

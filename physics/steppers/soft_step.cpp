@@ -171,8 +171,8 @@ class SoftStepper final : public Stepper {
       for (int q = 0; q < u.size; ++q) {  // the soft step solves row by row
         const size_t k = static_cast<size_t>(u.first + q);
         Row& r = rows[k];
-        const double dl = -(a_[k] * rowVelocity(r, v, w) + b_[k]) - si_[k] * r.lambda;
-        change = std::max(change, accumulate(r, dl, rows, v, w));
+        change = std::max(change,
+                          solveRow(r, rows, v, w, [&](double jv) { return -(a_[k] * jv + b_[k]) - si_[k] * r.lambda; }));
       }
     }
     return change;

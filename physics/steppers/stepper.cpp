@@ -87,9 +87,11 @@ void solveContactBlock(const SolveUnit& u, BlockData& d, Row* rows, const double
     for (int i = 0; i < k; ++i) delta[i] = 0;
     return;
   }
-  Eigen::Vector4d bb = Eigen::Vector4d::Zero();
-  for (int i = 0; i < k; ++i) bb[i] = b[i];
-  const Eigen::Vector4d full = d.invK * bb;
+  double full[4];
+  for (int i = 0; i < k; ++i) {
+    full[i] = 0;
+    for (int j = 0; j < k; ++j) full[i] += d.invK(i, j) * b[j];
+  }
   bool ok = true;
   for (int i = 0; i < k; ++i) ok = ok && lam[i] + full[i] >= 0;
   if (ok) {
@@ -155,7 +157,33 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
       Row& r = rows[u.first];
       const double cb = r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
       const double cv = r.velocityTarget ? k.velTarget : k.vel;
-      change = std::max(change, accumulate(r, r.effMass * (cb * r.bias - cv * rowVelocity(r, v, w)), rows, v, w));
+      const double target = cb * r.bias;
+      change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return r.effMass * (target - cv * jv); }));
+      continue;
+    }
+    // A unit's rows share their two bodies (one manifold, one joint part): their velocities are
+    // read once and written once.
+    const int ia = rows[u.first].a, ib = rows[u.first].b;
+    Vec3 va = v[ia], wa = w[ia], vb = v[ib], wb = w[ib];
+    if (u.kind == SolveUnit::Friction) {  // three singles in a row, bounded by the same Σλn
+      const double ln = normalImpulse(rows[u.first], rows);
+      for (int i = 0; i < u.size; ++i) {
+        Row& r = rows[u.first + i];
+        const double cb = r.velocityTarget ? k.biasTarget : k.bias;
+        const double cv = r.velocityTarget ? k.velTarget : k.vel;
+        const double jv = r.linA.dot(va) + r.angA.dot(wa) + r.linB.dot(vb) + r.angB.dot(wb);
+        const double next = std::clamp(r.lambda + r.effMass * (cb * r.bias - cv * jv), r.lo * ln, r.hi * ln);
+        const double d = next - r.lambda;
+        r.lambda = next;
+        r.pushed = r.pushed || next > 0;
+        if (d == 0) continue;
+        va += d * r.mLinA;
+        wa += d * r.mAngA;
+        vb += d * r.mLinB;
+        wb += d * r.mAngB;
+        if (r.effMass > 0) change = std::max(change, std::abs(d) / r.effMass);
+      }
+      v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
       continue;
     }
     // Blocks: b = cBias β - cVel J̌v̌ for each of their rows.
@@ -164,7 +192,7 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
       const Row& r = rows[u.first + i];
       const double cb = r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
       const double cv = r.velocityTarget ? k.velTarget : k.vel;
-      b[i] = cb * r.bias - cv * rowVelocity(r, v, w);
+      b[i] = cb * r.bias - cv * (r.linA.dot(va) + r.angA.dot(wa) + r.linB.dot(vb) + r.angB.dot(wb));
     }
     BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
     if (u.kind == SolveUnit::Stable) {
@@ -181,9 +209,13 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
       if (dl[i] == 0) continue;
       r.lambda += dl[i];
       r.pushed = r.pushed || r.lambda > 0;
-      applyImpulse(r, dl[i], v, w);
+      va += dl[i] * r.mLinA;
+      wa += dl[i] * r.mAngA;
+      vb += dl[i] * r.mLinB;
+      wb += dl[i] * r.mAngB;
       if (r.effMass > 0) change = std::max(change, std::abs(dl[i]) / r.effMass);
     }
+    v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
   }
   return change;
 }

@@ -90,9 +90,14 @@ struct SweepScales {
   static SweepScales havok(const SolverSettings& s);  // A3/A4
 };
 
-// Adds dl to a row's λ within its bounds (friction: μ times its normals' current Σλ), applies what
-// was added to the velocities and returns that velocity change |Δλ| / m_eff [m/s or rad/s].
-inline double accumulate(Row& r, double dl, const Row* rows, Vec3* v, Vec3* w) {
+// One row by Gauss-Seidel: dl = increment(J̌v̌) is added to λ within its bounds (friction: μ times
+// its normals' current Σλ) and what was added is applied to the velocities; returns that velocity
+// change |Δλ| / m_eff [m/s or rad/s]. The two bodies' velocities are read once: the compiler
+// cannot tell the rows' doubles from the velocities' and would read them again.
+template <class Increment>
+inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment increment) {
+  const Vec3 va = v[r.a], wa = w[r.a], vb = v[r.b], wb = w[r.b];
+  double dl = increment(r.linA.dot(va) + r.angA.dot(wa) + r.linB.dot(vb) + r.angB.dot(wb));
   double lo = r.lo, hi = r.hi;
   if (r.normalRow >= 0) {
     const double ln = normalImpulse(r, rows);
@@ -104,7 +109,10 @@ inline double accumulate(Row& r, double dl, const Row* rows, Vec3* v, Vec3* w) {
   r.lambda = next;
   r.pushed = r.pushed || next > 0;
   if (dl == 0) return 0;
-  applyImpulse(r, dl, v, w);
+  v[r.a] = va + dl * r.mLinA;
+  w[r.a] = wa + dl * r.mAngA;
+  v[r.b] = vb + dl * r.mLinB;
+  w[r.b] = wb + dl * r.mAngB;
   return r.effMass > 0 ? std::abs(dl) / r.effMass : 0;
 }
 

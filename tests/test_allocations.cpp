@@ -1,0 +1,76 @@
+// No allocation inside a step once a scene has settled: every buffer the pipeline uses (pairs,
+// manifolds, rows, units, blocks, sub-step velocities) keeps its capacity from step to step.
+// The count is of every operator new in this process while World::step runs.
+#include "physics/scene_file.h"
+#include "physics/world.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cctype>
+#include <cstdlib>
+#include <new>
+#include <string>
+
+namespace {
+std::atomic<long> gAllocations{0};
+std::atomic<bool> gCounting{false};
+}  // namespace
+
+void* operator new(std::size_t n) {
+  if (gCounting.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+using namespace substep;
+
+namespace {
+
+struct Case {
+  const char* scene;
+  const char* algorithm;  // "" for the scene's own settings
+};
+
+std::string caseName(const ::testing::TestParamInfo<Case>& i) {
+  std::string s = std::string(i.param.scene) + "_" + (*i.param.algorithm ? i.param.algorithm : "scene");
+  for (char& c : s)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return s;
+}
+
+class SettledStep : public ::testing::TestWithParam<Case> {};
+
+}  // namespace
+
+TEST_P(SettledStep, AllocatesNothing) {
+  const Case& c = GetParam();
+  const Scene scene = loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + c.scene + ".json");
+  SolverOverrides o = scene.solver;
+  if (*c.algorithm) o.algorithm = parseAlgorithm(c.algorithm);
+  World world(scene.model, resolve(o), scene.initial);
+  for (int k = 0; k < 180; ++k) ASSERT_TRUE(world.step().finite);  // 3 s: settled
+  gAllocations = 0;
+  gCounting = true;
+  bool finite = true;
+  for (int k = 0; k < 100; ++k) finite = finite && world.step().finite;
+  gCounting = false;
+  ASSERT_TRUE(finite);
+  EXPECT_EQ(gAllocations.load(), 0) << "allocations in 100 settled steps of " << c.scene;
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, SettledStep,
+                         ::testing::Values(Case{"pyramid", ""}, Case{"pyramid", "a3"}, Case{"pyramid", "a4"},
+                                           Case{"pyramid", "soft"}, Case{"chain", ""}),
+                         caseName);
+
+// Known to fail (2026-12-01): every pair the manifold cache does not keep goes through FCL, and
+// FCL allocates on each query (boxBox2's contact vector, libccd's simplices): 71 063 allocations
+// in 100 steps of the pyramid under A2 (its boxes rock, so fewer pairs are kept), 8 on the stack,
+// 62 125 on the ragdoll pile. They pass once the hot pairs (box-box, capsule-capsule) have fast
+// paths of their own. Run them with --gtest_also_run_disabled_tests.
+INSTANTIATE_TEST_SUITE_P(DISABLED_FclNarrowphase, SettledStep,
+                         ::testing::Values(Case{"pyramid", "a2"}, Case{"stack", ""}, Case{"ragdoll_pile", ""}),
+                         caseName);
