@@ -1,0 +1,249 @@
+// A live session: a RenderSession played in real time on a thread of its own, for the server
+// (`substep serve`). The thread owns the session's renderer (an OSMesa context is current on one
+// thread at a time), steps the panels paced to the wall clock, draws a frame per tick while
+// someone watches, encodes it as JPEG and publishes it with the stats of the step; it keeps the
+// last seconds of frames so that a clip of them can be made, and records clips of the next
+// seconds. No HTTP here: app/server.cpp calls it from its request threads.
+//
+//   LiveSession s(scene, {{settings, ""}}, look, config);   // starts the thread, paused
+//   s.play(1.0);
+//   s.change([](RenderSession& r, Look& look) { look.camera.yaw += 10; });
+//   LiveFrame f = s.waitFrame(0, 1.0);                        // the next JPEG
+//
+// Pacing: each tick (1/fps of wall time) the simulated time is meant to advance by speed times
+// the wall time since the last tick. The physics of a tick may take at most `physicsBudget` of
+// the tick; what it cannot do is dropped (the simulation falls behind real time, and the stats
+// say so with the rate it achieves) rather than owed, so that a slow scene does not spiral.
+#pragma once
+
+#include "physics/scene_file.h"
+#include "render/gl_renderer.h"
+#include "render/session.h"
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace substep::render {
+
+struct LiveConfig {
+  int width = 1280, height = 720;
+  int fps = 30;                 // frames per wall-clock second
+  int jpegQuality = 80;
+  double historySeconds = 10;   // frames kept for clips of the last seconds
+  double physicsBudget = 0.8;   // share of a tick the physics may take before it falls behind
+  RendererOptions renderer;
+  std::string ffmpeg;           // for clips; "" refuses them
+  std::string clipFolder;       // where finished clips are written
+};
+
+// One panel's measures after a tick.
+struct LivePanelStats {
+  std::string name, settings;   // the panel's label (its method spec) and settingsLine()
+  double time = 0;              // simulated [s]
+  long long steps = 0;
+  double stepMs = 0;            // mean cost of the tick's steps [ms] (NaN before any)
+  StageTimes stages;            // the last step's stages [s]
+  int contacts = 0, manifolds = 0, pairs = 0;
+  double penetration = 0, jointError = 0;  // [m]
+  double kinetic = 0, potential = 0;       // [J]
+  bool diverged = false;
+  std::string problem;
+};
+
+struct LiveStats {
+  long long seq = 0;            // increases with every tick that published
+  long long frames = 0;         // frames drawn since the start
+  bool playing = false, seeking = false;
+  double speed = 1;             // asked: simulated seconds per wall second
+  double achieved = 0;          // what the last second achieved (while playing)
+  bool behind = false;          // playing slower than asked: the physics cannot keep up
+  double fps = 0;               // frames drawn per wall second, over the last second
+  double physicsMs = 0, drawMs = 0, encodeMs = 0;  // per tick, over the last second
+  int jpegBytes = 0;
+  std::vector<LivePanelStats> panels;
+  std::string status;           // why it paused (a divergence), or a renderer failure
+};
+
+struct LiveFrame {
+  long long seq = 0;            // 0: none (yet, or the session closed)
+  std::shared_ptr<const std::string> jpeg;
+  double time = 0;              // simulated, panel 0 [s]
+};
+
+// A clip of the session's frames, encoded to H.264 by ffmpeg on a thread of its own.
+struct ClipInfo {
+  int id = 0;
+  std::string mode;             // "last" or "next"
+  double seconds = 0;
+  std::string state;            // "recording", "encoding", "done", "failed"
+  int frames = 0;
+  std::string error;
+  std::string path;             // when done
+  long long bytes = 0;
+};
+
+class LiveSession {
+ public:
+  // Starts the session's thread, paused at t = 0. Throws PanelError (as RenderSession does).
+  LiveSession(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels, const Look& look,
+              const LiveConfig& config);
+  ~LiveSession();  // close()
+  LiveSession(const LiveSession&) = delete;
+  LiveSession& operator=(const LiveSession&) = delete;
+
+  // Stops the thread (after the step it is in), ends streams waiting on it, waits for clips
+  // being encoded. Idempotent.
+  void close();
+  bool closed() const { return closed_; }
+  const LiveConfig& config() const { return config_; }
+
+  // Any change of the simulation or of what is drawn, under the session's lock, between steps;
+  // the next tick draws it. What `f` throws propagates, and nothing is redrawn then.
+  template <class F>
+  auto change(F&& f) {
+    std::lock_guard<std::mutex> lk(m_);
+    dirty_ = true;
+    struct Sync {  // the look goes to the session however f returns (picking reads its camera)
+      LiveSession& s;
+      ~Sync() { s.session_.setLook(s.look_); }
+    } sync{*this};
+    return f(session_, look_);
+  }
+  // The same for a change that starts the panels again (other panels, another scene): from
+  // t = 0 afterwards, a divergence forgotten, playing on if it played.
+  template <class F>
+  auto restart(F&& f) {
+    std::lock_guard<std::mutex> lk(m_);
+    dirty_ = true;
+    struct Sync {
+      LiveSession& s;
+      ~Sync() {
+        s.session_.setLook(s.look_);
+        s.restarted();
+      }
+    } sync{*this};
+    return f(session_, look_);
+  }
+  // Reading under the lock.
+  template <class F>
+  auto read(F&& f) const {
+    std::lock_guard<std::mutex> lk(m_);
+    return f(session_, look_);
+  }
+
+  void play(double speed);   // speed: simulated seconds per wall second
+  void pause();
+  // `count` steps now, paused (the answer waits for them). Returns the simulated time.
+  double step(int count);
+  void reset();              // to t = 0, playing on if it played
+  // Plays as fast as it can to simulated time t (from the start if t is earlier), then pauses.
+  void seek(double t);
+  bool playing() const;
+
+  // The first frame newer than `after`, waiting up to `timeout` seconds for it; the latest frame
+  // (maybe not newer) after the timeout; seq 0 when the session closed or none was ever drawn.
+  // Waiting counts as watching: frames are drawn only while someone waits for them or a clip
+  // records.
+  LiveFrame waitFrame(long long after, double timeout);
+  // The latest frame as pixels, drawing one if none is current (waits up to `timeout` seconds).
+  std::shared_ptr<const Image> image(double timeout);
+  // The first stats newer than `after`, or the latest after `timeout` seconds.
+  LiveStats waitStats(long long after, double timeout) const;
+  LiveStats stats() const;
+
+  // A stream of the session counts as a viewer while it lives.
+  class Viewer {
+   public:
+    explicit Viewer(LiveSession& s) : s_(s) { ++s_.viewers_, s_.touch(); }
+    ~Viewer() { --s_.viewers_, s_.touch(); }
+    Viewer(const Viewer&) = delete;
+    Viewer& operator=(const Viewer&) = delete;
+   private:
+    LiveSession& s_;
+  };
+  int viewers() const { return viewers_; }
+
+  // Wall seconds since the last request or viewer; 0 while a viewer is connected.
+  double idleSeconds() const;
+  void touch();
+
+  // Clips: "last" takes the frames of the last `seconds` (at most historySeconds) at once;
+  // "next" records the next seconds' frames, drawing every tick meanwhile. Returns the clip's
+  // id. Throws std::invalid_argument (no ffmpeg, no frames yet, too many clips at once).
+  int record(const std::string& mode, double seconds);
+  std::optional<ClipInfo> clip(int id) const;
+  std::vector<ClipInfo> clips() const;
+
+ private:
+  struct Clip {
+    ClipInfo info;
+    std::vector<std::shared_ptr<const std::string>> jpegs;
+    int wanted = 0;
+    std::thread encoder;
+  };
+  struct Stored {
+    double wall;
+    std::shared_ptr<const std::string> jpeg;
+  };
+
+  void restarted();  // under m_
+  void run();
+  void tick(GlRenderer* renderer, double now);
+  void advance(double now, double wallDt);
+  void collectStats(LiveStats& s, double physicsMs);
+  void publish(std::shared_ptr<const std::string> jpeg, const LiveStats& s, double simTime, double now);
+  void startEncoding(Clip& c);  // under clipM_
+
+  LiveConfig config_;
+  mutable std::mutex m_;  // the simulation: session_, look_, play state
+  RenderSession session_;
+  Look look_;
+  bool playing_ = false, dirty_ = true;
+  double speed_ = 1, goal_ = 0;  // goal_: simulated time the pacing aims at
+  std::optional<double> seekTo_;
+  bool reportedDivergence_ = false;
+  std::string status_;
+
+  // The thread's own, read by nobody else.
+  double lastTick_ = 0, lastSimTime_ = 0;
+  double windowStart_ = 0, windowSim_ = 0, windowPhysics_ = 0, windowDraw_ = 0, windowEncode_ = 0;
+  int windowFrames_ = 0, windowTicks_ = 0;
+  double rateFps_ = 0, ratePhysics_ = 0, rateDraw_ = 0, rateEncode_ = 0, rateAchieved_ = 0;
+  bool behindTick_ = false, windowBehind_ = false, rateBehind_ = false;
+  std::vector<long long> prevSteps_;   // per panel, at the last stats: steps and their cost
+  std::vector<double> prevPhysics_, lastStepMs_;
+  std::shared_ptr<Image> back_;    // drawn into; swapped with front_ when published
+  double lastDrawWall_ = -1;
+
+  mutable std::mutex frameM_;  // what is published
+  mutable std::condition_variable frameCv_;
+  LiveFrame latest_;
+  std::shared_ptr<Image> front_;
+  LiveStats stats_;
+  long long framesDrawn_ = 0;
+  std::deque<Stored> history_;
+  bool imageWanted_ = false;
+
+  mutable std::mutex clipM_;
+  std::map<int, std::unique_ptr<Clip>> clips_;
+  int nextClip_ = 1;
+  std::atomic<int> recording_{0};  // "next" clips collecting frames
+
+  std::atomic<int> viewers_{0};
+  std::atomic<double> lastTouch_;
+  std::atomic<bool> stop_{false}, closed_{false};
+  std::mutex stopM_;
+  std::condition_variable stopCv_;
+  std::thread thread_;
+};
+
+}  // namespace substep::render
