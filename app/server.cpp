@@ -37,7 +37,7 @@ using namespace substep::render;
 
 constexpr int kMaxPanels = 4;
 constexpr int kMaxViewers = 4;       // streams of one session at once
-constexpr int kMaxSide = 1920, kMinSide = 64;
+constexpr int kMaxWidth = 1920, kMaxHeight = 1080, kMinSide = 64;
 constexpr double kMaxSeek = 3600;    // [s] simulated
 constexpr int kMaxSteps = 600;       // one request's single steps
 
@@ -477,10 +477,10 @@ struct Server::Impl {
       } catch (const UsageError&) {
         c.width = -1;
       }
-      if (c.width < kMinSide || c.height < kMinSide || c.width > kMaxSide || c.height > kMaxSide)
+      if (c.width < kMinSide || c.height < kMinSide || c.width > kMaxWidth || c.height > kMaxHeight)
         throw HttpError(400, "size: expected WIDTHxHEIGHT from " + std::to_string(kMinSide) + "x" +
-                                 std::to_string(kMinSide) + " to " + std::to_string(kMaxSide) + "x" +
-                                 std::to_string(kMaxSide) + ", got " + quote(json(size)));
+                                 std::to_string(kMinSide) + " to " + std::to_string(kMaxWidth) + "x" +
+                                 std::to_string(kMaxHeight) + ", got " + quote(json(size)));
     }
     c.fps = f.has("fps") ? f.integer("fps", {1, 60}) : o.fps;
     const double speed = f.has("speed") ? f.number("speed", {0.01, 10}) : 1.0;
@@ -1141,16 +1141,19 @@ void Server::Impl::routesSetUp() {
     res.set_header("Content-Disposition", "attachment; filename=\"substep-" + s->sceneName + "-clip" + std::to_string(c.id) + ".mp4\"");
   });
 
-  // Unknown sessions of any shape are 404 too (a well-formed id that is not open is found above).
-  route("GET", anyId + "(/.*)?", [](const Request& req, Response&) -> void {
-    throw HttpError(404, "no session \"" + std::string(req.matches[1]).substr(0, 40) + "\"");
-  });
-  route("POST", anyId + "(/.*)?", [](const Request& req, Response&) -> void {
-    throw HttpError(404, "no session \"" + std::string(req.matches[1]).substr(0, 40) + "\"");
-  });
-  route("DELETE", anyId, [](const Request& req, Response&) -> void {
-    throw HttpError(404, "no session \"" + std::string(req.matches[1]).substr(0, 40) + "\"");
-  });
+  // Unknown sessions of any shape are 404 too (a well-formed id that is open is answered above);
+  // an open session's unknown path is the usual 404 or 405.
+  auto noSession = [this](const Request& req, Response& res) {
+    const std::string id = req.matches[1];
+    {
+      std::lock_guard<std::mutex> lk(sessionsM);
+      if (sessions.count(id)) return notFound(req, res);
+    }
+    throw HttpError(404, "no session \"" + id.substr(0, 40) + "\"");
+  };
+  route("GET", anyId + "(/.*)?", noSession);
+  route("POST", anyId + "(/.*)?", noSession);
+  route("DELETE", anyId + "(/.*)?", noSession);
 
   route("GET", R"(/lab/(.+))", [this](const Request& req, Response& res) {
     if (o.labDir.empty()) throw HttpError(404, "no lab folder (substep serve --lab DIR)");
@@ -1200,6 +1203,12 @@ Server::Server(ServerOptions options) : impl_(std::make_unique<Impl>(std::move(o
   const size_t threads = static_cast<size_t>(4 * m.o.maxSessions + 16);
   m.http.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
   m.http.set_payload_max_length(m.o.maxBody);
+  // SO_REUSEADDR only: httplib's default adds SO_REUSEPORT, with which a second server on the
+  // same port starts too and takes half the connections.
+  m.http.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
   m.http.set_keep_alive_timeout(2);
   m.http.set_read_timeout(10);
   m.http.set_write_timeout(10);

@@ -27,10 +27,12 @@ constexpr int kMaxClipsAtOnce = 2;
 
 LiveSession::LiveSession(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels, const Look& look,
                          const LiveConfig& config)
-    : config_(config), session_(std::move(scene), panels, look), look_(look), back_(std::make_shared<Image>()) {
+    : config_(config), session_(std::move(scene), panels, look), look_(look) {
   config_.fps = std::max(1, config_.fps);
   lastTouch_ = wallNow();
+  collectStats(stats_);  // stats from the start, before the first tick
   thread_ = std::thread([this] { run(); });
+  encoder_ = std::thread([this] { encodeLoop(); });
 }
 
 LiveSession::~LiveSession() { close(); }
@@ -46,7 +48,12 @@ void LiveSession::close() {
     std::lock_guard<std::mutex> lk(frameM_);
   }
   frameCv_.notify_all();
+  {
+    std::lock_guard<std::mutex> lk(encM_);
+  }
+  encCv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  if (encoder_.joinable()) encoder_.join();
   // Clips being encoded finish (ffmpeg is quick); their threads take clipM_ at the end.
   std::vector<std::thread*> encoders;
   {
@@ -68,6 +75,7 @@ void LiveSession::play(double speed) {
   speed_ = speed;
   seekTo_.reset();
   dirty_ = true;
+  republish();
 }
 
 void LiveSession::pause() {
@@ -75,6 +83,7 @@ void LiveSession::pause() {
   playing_ = false;
   seekTo_.reset();
   dirty_ = true;
+  republish();
 }
 
 bool LiveSession::playing() const {
@@ -92,6 +101,7 @@ double LiveSession::step(int count) {
     reportedDivergence_ = true;
   }
   dirty_ = true;
+  republish();
   return session_.panel(0).state().time;
 }
 
@@ -99,6 +109,7 @@ void LiveSession::reset() {
   std::lock_guard<std::mutex> lk(m_);
   session_.reset();
   restarted();
+  republish();
 }
 
 void LiveSession::restarted() {
@@ -119,6 +130,27 @@ void LiveSession::seek(double t) {
   seekTo_ = t;
   playing_ = false;
   dirty_ = true;
+  republish();
+}
+
+void LiveSession::republish() {
+  LiveStats s;
+  collectStats(s);
+  s.seeking = seekTo_.has_value();
+  {
+    std::lock_guard<std::mutex> lk(frameM_);
+    s.seq = stats_.seq + 1;
+    s.frames = stats_.frames;
+    s.fps = stats_.fps;
+    s.achieved = s.playing ? stats_.achieved : 0;
+    s.behind = s.playing && stats_.behind;
+    s.physicsMs = stats_.physicsMs;
+    s.drawMs = stats_.drawMs;
+    s.encodeMs = stats_.encodeMs;
+    s.jpegBytes = stats_.jpegBytes;
+    stats_ = std::move(s);
+  }
+  frameCv_.notify_all();
 }
 
 // --- the session's thread --------------------------------------------------------------------
@@ -191,7 +223,7 @@ void LiveSession::advance(double now, double wallDt) {
   }
 }
 
-void LiveSession::collectStats(LiveStats& s, double physicsMs) {
+void LiveSession::collectStats(LiveStats& s) {
   s.playing = playing_;
   s.seeking = seekTo_.has_value();
   s.speed = speed_;
@@ -233,7 +265,6 @@ void LiveSession::collectStats(LiveStats& s, double physicsMs) {
     }
     s.panels.push_back(std::move(ps));
   }
-  (void)physicsMs;
 }
 
 void LiveSession::tick(GlRenderer* renderer, double now) {
@@ -259,21 +290,21 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
       lists = session_.drawLists();
       dirty_ = false;
     }
-    collectStats(s, 1e3 * (physicsEnd - now));
+    collectStats(s);
     simTime = session_.panel(0).state().time;
   }
-  std::shared_ptr<const std::string> jpeg;
-  double drawEnd = physicsEnd, encodeEnd = physicsEnd;
+  std::shared_ptr<Image> image;
+  double drawEnd = physicsEnd;
   if (!lists.empty()) {
     try {
-      renderer->render(gridViews(lists, renderer->width(), renderer->height()), *back_);
+      image = spareImage();
+      renderer->render(gridViews(lists, renderer->width(), renderer->height()), *image);
       drawEnd = wallNow();
-      jpeg = std::make_shared<const std::string>(encodeJpeg(*back_, config_.jpegQuality));
-      encodeEnd = wallNow();
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> lk(m_);
       status_ = std::string("cannot draw: ") + e.what();
       playing_ = false;
+      image.reset();
     }
   }
 
@@ -284,10 +315,9 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
   windowPhysics_ += physicsEnd - now;
   ++windowTicks_;
   windowBehind_ = windowBehind_ || behindTick_;
-  if (jpeg) {
+  if (image) {
     ++windowFrames_;
     windowDraw_ += drawEnd - physicsEnd;
-    windowEncode_ += encodeEnd - drawEnd;
   }
   if (now - windowStart_ >= kWindow) {
     const double span = now - windowStart_;
@@ -295,10 +325,9 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
     rateAchieved_ = windowSim_ / span;
     ratePhysics_ = 1e3 * windowPhysics_ / windowTicks_;
     rateDraw_ = windowFrames_ ? 1e3 * windowDraw_ / windowFrames_ : 0;
-    rateEncode_ = windowFrames_ ? 1e3 * windowEncode_ / windowFrames_ : 0;
     rateBehind_ = windowBehind_;
     windowStart_ = now;
-    windowSim_ = windowPhysics_ = windowDraw_ = windowEncode_ = 0;
+    windowSim_ = windowPhysics_ = windowDraw_ = 0;
     windowFrames_ = windowTicks_ = 0;
     windowBehind_ = false;
   }
@@ -307,20 +336,70 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
   s.behind = s.playing && rateBehind_;
   s.physicsMs = ratePhysics_;
   s.drawMs = rateDraw_;
-  s.encodeMs = rateEncode_;
-  publish(std::move(jpeg), s, simTime, now);
+  s.encodeMs = encodeMs_;
+  if (!image) {
+    publish(nullptr, nullptr, s, simTime, now);
+    return;
+  }
+  // To the encoder, which publishes it with its stats. One frame waits at most: when JPEG is the
+  // slower half, the session thread waits here rather than drawing frames nobody gets.
+  {
+    std::unique_lock<std::mutex> lk(encM_);
+    encCv_.wait(lk, [&] { return !drawn_ || stop_; });
+    drawn_ = Drawn{std::move(image), s, simTime, now};
+  }
+  encCv_.notify_all();
 }
 
-void LiveSession::publish(std::shared_ptr<const std::string> jpeg, const LiveStats& s, double simTime, double now) {
+std::shared_ptr<Image> LiveSession::spareImage() {
+  std::lock_guard<std::mutex> lk(encM_);
+  if (spare_.empty()) return std::make_shared<Image>();
+  std::shared_ptr<Image> img = std::move(spare_.back());
+  spare_.pop_back();
+  return img;
+}
+
+void LiveSession::encodeLoop() {
+  for (;;) {
+    Drawn d;
+    {
+      std::unique_lock<std::mutex> lk(encM_);
+      encCv_.wait(lk, [&] { return drawn_ || stop_; });
+      if (stop_) return;
+      d = std::move(*drawn_);
+      drawn_.reset();
+    }
+    encCv_.notify_all();
+    const double t0 = wallNow();
+    std::shared_ptr<const std::string> jpeg;
+    try {
+      jpeg = std::make_shared<const std::string>(encodeJpeg(*d.image, config_.jpegQuality));
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lk(m_);
+      status_ = std::string("cannot encode: ") + e.what();
+      continue;
+    }
+    const double ms = 1e3 * (wallNow() - t0);
+    encodeMs_ = encodeMs_ > 0 ? 0.9 * encodeMs_ + 0.1 * ms : ms;  // smoothed over about ten frames
+    d.stats.encodeMs = encodeMs_;
+    publish(std::move(jpeg), std::move(d.image), d.stats, d.simTime, d.wall);
+  }
+}
+
+void LiveSession::publish(std::shared_ptr<const std::string> jpeg, std::shared_ptr<Image> image, const LiveStats& s,
+                          double simTime, double now) {
   {
     std::lock_guard<std::mutex> lk(frameM_);
     if (jpeg) {
       latest_.seq += 1;
       latest_.jpeg = jpeg;
       latest_.time = simTime;
-      std::swap(front_, back_);
-      // Drawn into again unless a request still holds it (then a fresh one: never a torn image).
-      if (!back_ || back_.use_count() > 1) back_ = std::make_shared<Image>();
+      std::swap(front_, image);
+      // The frame before is drawn into again, unless a request still holds it (never a torn image).
+      if (image && image.use_count() == 1) {
+        std::lock_guard<std::mutex> el(encM_);
+        if (spare_.size() < 2) spare_.push_back(std::move(image));
+      }
       history_.push_back({now, jpeg});
       while (!history_.empty() && history_.front().wall < now - config_.historySeconds) history_.pop_front();
       imageWanted_ = false;
@@ -400,7 +479,7 @@ int LiveSession::record(const std::string& mode, double seconds) {
     for (const Stored& f : history_)
       if (f.wall >= from) c->jpegs.push_back(f.jpeg);
     if (c->jpegs.empty())
-      throw std::invalid_argument("no frames were drawn in the last " + std::to_string(seconds) +
+      throw std::invalid_argument("no frames were drawn in the last " + numberText(seconds) +
                                   " s: frames are drawn while the stream is watched");
   } else {
     c->wanted = std::max(1, static_cast<int>(std::lround(seconds * config_.fps)));

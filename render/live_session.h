@@ -1,7 +1,8 @@
 // A live session: a RenderSession played in real time on a thread of its own, for the server
 // (`substep serve`). The thread owns the session's renderer (an OSMesa context is current on one
-// thread at a time), steps the panels paced to the wall clock, draws a frame per tick while
-// someone watches, encodes it as JPEG and publishes it with the stats of the step; it keeps the
+// thread at a time), steps the panels paced to the wall clock and draws a frame per tick while
+// someone watches; a second thread encodes it as JPEG (while the next one is drawn) and
+// publishes it with the stats of the step; the session keeps the
 // last seconds of frames so that a clip of them can be made, and records clips of the next
 // seconds. No HTTP here: app/server.cpp calls it from its request threads.
 //
@@ -114,7 +115,10 @@ class LiveSession {
     dirty_ = true;
     struct Sync {  // the look goes to the session however f returns (picking reads its camera)
       LiveSession& s;
-      ~Sync() { s.session_.setLook(s.look_); }
+      ~Sync() {
+        s.session_.setLook(s.look_);
+        s.republish();
+      }
     } sync{*this};
     return f(session_, look_);
   }
@@ -129,6 +133,7 @@ class LiveSession {
       ~Sync() {
         s.session_.setLook(s.look_);
         s.restarted();
+        s.republish();
       }
     } sync{*this};
     return f(session_, look_);
@@ -196,11 +201,19 @@ class LiveSession {
   };
 
   void restarted();  // under m_
+  // Under m_: the stats of the simulation as it is now, published at once (a request's answer
+  // and the next stats agree), with the rates of the last tick.
+  void republish();
   void run();
   void tick(GlRenderer* renderer, double now);
   void advance(double now, double wallDt);
-  void collectStats(LiveStats& s, double physicsMs);
-  void publish(std::shared_ptr<const std::string> jpeg, const LiveStats& s, double simTime, double now);
+  void collectStats(LiveStats& s);  // under m_
+  void publish(std::shared_ptr<const std::string> jpeg, std::shared_ptr<Image> image, const LiveStats& s,
+               double simTime, double now);
+  // The encoder's thread: the JPEG of the frame drawn last while the session thread steps and
+  // draws the next one (the two halves of a frame cost about the same at 1280x720).
+  void encodeLoop();
+  std::shared_ptr<Image> spareImage();
   void startEncoding(Clip& c);  // under clipM_
 
   LiveConfig config_;
@@ -215,14 +228,26 @@ class LiveSession {
 
   // The thread's own, read by nobody else.
   double lastTick_ = 0, lastSimTime_ = 0;
-  double windowStart_ = 0, windowSim_ = 0, windowPhysics_ = 0, windowDraw_ = 0, windowEncode_ = 0;
+  double windowStart_ = 0, windowSim_ = 0, windowPhysics_ = 0, windowDraw_ = 0;
   int windowFrames_ = 0, windowTicks_ = 0;
-  double rateFps_ = 0, ratePhysics_ = 0, rateDraw_ = 0, rateEncode_ = 0, rateAchieved_ = 0;
+  double rateFps_ = 0, ratePhysics_ = 0, rateDraw_ = 0, rateAchieved_ = 0;
   bool behindTick_ = false, windowBehind_ = false, rateBehind_ = false;
   std::vector<long long> prevSteps_;   // per panel, at the last stats: steps and their cost
   std::vector<double> prevPhysics_, lastStepMs_;
-  std::shared_ptr<Image> back_;    // drawn into; swapped with front_ when published
   double lastDrawWall_ = -1;
+
+  // Between the session thread and the encoder.
+  struct Drawn {
+    std::shared_ptr<Image> image;
+    LiveStats stats;
+    double simTime = 0, wall = 0;
+  };
+  std::mutex encM_;
+  std::condition_variable encCv_;
+  std::optional<Drawn> drawn_;                 // drawn, not yet taken by the encoder
+  std::vector<std::shared_ptr<Image>> spare_;  // frames to draw into (their pixels reused)
+  std::atomic<double> encodeMs_{0};
+  std::thread encoder_;
 
   mutable std::mutex frameM_;  // what is published
   mutable std::condition_variable frameCv_;
