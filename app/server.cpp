@@ -9,6 +9,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include <malloc.h>
 #include <stdlib.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -262,6 +263,8 @@ struct Server::Impl {
   std::map<std::string, std::shared_ptr<WebSession>> sessions;
   std::mutex scenesM;
   std::map<std::string, std::shared_ptr<const Scene>> sceneCache;
+  // One frame drawn at a time (llvmpipe uses both cores) and one JPEG encoded, whichever session.
+  std::shared_ptr<FairGate> drawGate = std::make_shared<FairGate>(1), encodeGate = std::make_shared<FairGate>(1);
   std::thread reaper;
   std::mutex reaperM;
   std::condition_variable reaperCv;
@@ -488,6 +491,8 @@ struct Server::Impl {
     c.jpegQuality = o.jpegQuality;
     c.historySeconds = o.history;
     c.ffmpeg = ffmpeg;
+    c.drawGate = drawGate;
+    c.encodeGate = encodeGate;
     const std::vector<PanelSetup> ps = setups(*s->scene, s->panels);
     Look look;
     look.camera = chooseCamera(*s->scene, {});
@@ -522,6 +527,7 @@ struct Server::Impl {
     std::error_code ec;
     fs::remove_all(s->clipFolder, ec);
     log("session " + s->id + " closed (" + why + ")");
+    trimMemory();
   }
 
   void removeSession(const std::string& id, const std::string& why) {
@@ -536,10 +542,19 @@ struct Server::Impl {
     closeSession(s, why);
   }
 
+  // glibc keeps what frames freed (megabytes each, from many threads) for reuse rather than giving
+  // it back; a closed session's memory, and what streaming leaves free, go back to the system.
+  static void trimMemory() { malloc_trim(0); }
+
   void reap() {
     std::unique_lock<std::mutex> lk(reaperM);
+    double lastTrim = nowSeconds();
     while (!stopping) {
       reaperCv.wait_for(lk, std::chrono::milliseconds(250));
+      if (nowSeconds() - lastTrim > 5) {
+        trimMemory();
+        lastTrim = nowSeconds();
+      }
       std::vector<std::string> idle;
       {
         std::lock_guard<std::mutex> sl(sessionsM);

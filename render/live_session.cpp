@@ -25,6 +25,26 @@ constexpr int kMaxClipsAtOnce = 2;
 
 }  // namespace
 
+FairGate::Turn::Turn(FairGate* g) : g_(g) {
+  if (!g_) return;
+  std::unique_lock<std::mutex> lk(g_->m_);
+  const unsigned long long ticket = g_->next_++;
+  g_->cv_.wait(lk, [&] { return ticket == g_->head_ && g_->busy_ < g_->slots_; });
+  ++g_->head_;
+  ++g_->busy_;
+  lk.unlock();
+  g_->cv_.notify_all();  // the next ticket may go too when there is another slot
+}
+
+FairGate::Turn::~Turn() {
+  if (!g_) return;
+  {
+    std::lock_guard<std::mutex> lk(g_->m_);
+    --g_->busy_;
+  }
+  g_->cv_.notify_all();
+}
+
 LiveSession::LiveSession(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels, const Look& look,
                          const LiveConfig& config)
     : config_(config), session_(std::move(scene), panels, look), look_(look) {
@@ -294,12 +314,15 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
     simTime = session_.panel(0).state().time;
   }
   std::shared_ptr<Image> image;
-  double drawEnd = physicsEnd;
+  double drawEnd = physicsEnd, drawWait = 0;
   if (!lists.empty()) {
     try {
       image = spareImage();
+      FairGate::Turn turn(config_.drawGate.get());
+      const double d0 = wallNow();  // the draw's own time, not the wait for its turn
       renderer->render(gridViews(lists, renderer->width(), renderer->height()), *image);
       drawEnd = wallNow();
+      drawWait = d0 - physicsEnd;
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> lk(m_);
       status_ = std::string("cannot draw: ") + e.what();
@@ -317,7 +340,7 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
   windowBehind_ = windowBehind_ || behindTick_;
   if (image) {
     ++windowFrames_;
-    windowDraw_ += drawEnd - physicsEnd;
+    windowDraw_ += drawEnd - physicsEnd - drawWait;
   }
   if (now - windowStart_ >= kWindow) {
     const double span = now - windowStart_;
@@ -370,9 +393,11 @@ void LiveSession::encodeLoop() {
       drawn_.reset();
     }
     encCv_.notify_all();
-    const double t0 = wallNow();
     std::shared_ptr<const std::string> jpeg;
+    double t0 = 0;
     try {
+      FairGate::Turn turn(config_.encodeGate.get());
+      t0 = wallNow();
       jpeg = std::make_shared<const std::string>(encodeJpeg(*d.image, config_.jpegQuality));
     } catch (const std::exception& e) {
       std::lock_guard<std::mutex> lk(m_);
@@ -398,7 +423,7 @@ void LiveSession::publish(std::shared_ptr<const std::string> jpeg, std::shared_p
       // The frame before is drawn into again, unless a request still holds it (never a torn image).
       if (image && image.use_count() == 1) {
         std::lock_guard<std::mutex> el(encM_);
-        if (spare_.size() < 2) spare_.push_back(std::move(image));
+        if (spare_.empty()) spare_.push_back(std::move(image));
       }
       history_.push_back({now, jpeg});
       while (!history_.empty() && history_.front().wall < now - config_.historySeconds) history_.pop_front();

@@ -35,6 +35,30 @@
 
 namespace substep::render {
 
+// Turns at a resource many sessions share (the cores), in the order they were asked for, at most
+// `slots` at once: llvmpipe draws one frame on both cores, so sessions that draw at the same time
+// only slow each other down (8 sessions at 1280x720 drew 12 frames a second together without a
+// gate, measured, and about 40 with one; docs/server.md).
+class FairGate {
+ public:
+  explicit FairGate(int slots) : slots_(slots) {}
+  class Turn {
+   public:
+    explicit Turn(FairGate* g);
+    ~Turn();
+    Turn(const Turn&) = delete;
+    Turn& operator=(const Turn&) = delete;
+   private:
+    FairGate* g_;
+  };
+
+ private:
+  std::mutex m_;
+  std::condition_variable cv_;
+  unsigned long long next_ = 0, head_ = 0;  // tickets handed out; the next one to go
+  int slots_, busy_ = 0;
+};
+
 struct LiveConfig {
   int width = 1280, height = 720;
   int fps = 30;                 // frames per wall-clock second
@@ -44,6 +68,7 @@ struct LiveConfig {
   RendererOptions renderer;
   std::string ffmpeg;           // for clips; "" refuses them
   std::string clipFolder;       // where finished clips are written
+  std::shared_ptr<FairGate> drawGate, encodeGate;  // shared by the sessions of a server; null: none
 };
 
 // One panel's measures after a tick.
