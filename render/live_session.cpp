@@ -356,7 +356,9 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
   }
   s.fps = rateFps_;
   s.achieved = s.playing ? rateAchieved_ : 0;
-  s.behind = s.playing && rateBehind_;
+  // Behind: a tick fell short in the last second and the second as a whole did too (a tick
+  // late now and then is not worth a warning).
+  s.behind = s.playing && rateBehind_ && rateAchieved_ < 0.95 * s.speed;
   s.physicsMs = ratePhysics_;
   s.drawMs = rateDraw_;
   s.encodeMs = encodeMs_;
