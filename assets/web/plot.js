@@ -70,15 +70,26 @@ class Plot {
     const rows = this.ys.map((y) => y.slice());
     if (this.stacked)
       for (let k = 1; k < rows.length; ++k) rows[k] = rows[k].map((v, i) => (rows[k - 1][i] || 0) + (v || 0));
-    let ymax = 0;
-    rows.forEach((y) => y.forEach((v) => { if (Number.isFinite(v)) ymax = Math.max(ymax, v); }));
-    if (ymax <= 0) ymax = 1;
-    ymax = niceCeil(ymax);
+    // The range: from 0 (or below, for energies measured from the start) to a round maximum.
+    let ymax = 0, ymin = 0;
+    rows.forEach((y) => y.forEach((v) => {
+      if (Number.isFinite(v)) { ymax = Math.max(ymax, v); ymin = Math.min(ymin, v); }
+    }));
+    if (ymax <= 0 && ymin >= 0) ymax = 1;
+    ymax = ymax > 0 ? niceCeil(ymax) : 0;
+    ymin = ymin < 0 ? -niceCeil(-ymin) : 0;
     const x0 = this.xs[0], x1 = this.xs[n - 1], span = Math.max(x1 - x0, 1e-9);
     const px = (x) => left + ((x - x0) / span) * (w - left - right);
-    const py = (y) => h - bottom - (y / ymax) * (h - top - bottom);
+    const py = (y) => h - bottom - ((y - ymin) / (ymax - ymin)) * (h - top - bottom);
     g.fillText(fmt(ymax), 2, top + 9);
-    g.fillText('0', 2, h - bottom);
+    g.fillText(fmt(ymin), 2, h - bottom);
+    if (ymin < 0) {
+      g.fillText('0', 2, py(0) + 4);
+      g.beginPath();
+      g.moveTo(left, py(0));
+      g.lineTo(w - right, py(0));
+      g.stroke();
+    }
     g.fillText(`${x0.toFixed(1)} s`, left, h - 4);
     const end = `${x1.toFixed(1)} s`;
     g.fillText(end, w - right - g.measureText(end).width, h - 4);
@@ -88,13 +99,13 @@ class Plot {
       let pen = false;
       rows[k].forEach((v, i) => {
         if (!Number.isFinite(v)) { pen = false; return; }
-        const X = px(this.xs[i]), Y = py(Math.min(v, ymax));
+        const X = px(this.xs[i]), Y = py(Math.max(ymin, Math.min(v, ymax)));
         if (pen) g.lineTo(X, Y); else g.moveTo(X, Y);
         pen = true;
       });
       if (this.stacked) {
-        g.lineTo(px(x1), py(0));
-        g.lineTo(px(x0), py(0));
+        g.lineTo(px(x1), py(Math.max(0, ymin)));
+        g.lineTo(px(x0), py(Math.max(0, ymin)));
         g.closePath();
         g.fillStyle = colour + '99';
         g.fill();
