@@ -36,6 +36,11 @@ FairGate::Turn::Turn(FairGate* g) : g_(g) {
   g_->cv_.notify_all();  // the next ticket may go too when there is another slot
 }
 
+int FairGate::waiting() const {
+  std::lock_guard<std::mutex> lk(m_);
+  return static_cast<int>(next_ - head_);
+}
+
 FairGate::Turn::~Turn() {
   if (!g_) return;
   {

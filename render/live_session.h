@@ -38,10 +38,11 @@ namespace substep::render {
 // Turns at a resource many sessions share (the cores), in the order they were asked for, at most
 // `slots` at once: llvmpipe draws one frame on both cores, so sessions that draw at the same time
 // only slow each other down (8 sessions at 1280x720 drew 12 frames a second together without a
-// gate, measured, and about 40 with one; docs/server.md).
+// gate, measured, and 15 to 18 with one; docs/server.md).
 class FairGate {
  public:
   explicit FairGate(int slots) : slots_(slots) {}
+  int waiting() const;  // tickets not yet served
   class Turn {
    public:
     explicit Turn(FairGate* g);
@@ -53,7 +54,7 @@ class FairGate {
   };
 
  private:
-  std::mutex m_;
+  mutable std::mutex m_;
   std::condition_variable cv_;
   unsigned long long next_ = 0, head_ = 0;  // tickets handed out; the next one to go
   int slots_, busy_ = 0;

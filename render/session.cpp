@@ -138,8 +138,9 @@ RenderSession::Pick RenderSession::pick(int width, int height, double x, double 
     const Vec3f a = unproject(-1), b = unproject(1);
     r.panel = static_cast<int>(i);
     r.origin = a.cast<double>();
-    r.direction = (b - a).normalized().cast<double>();
-    r.hit = p.world().raycast(r.origin, r.direction, (b - a).norm(), true);
+    r.direction = (b - a).cast<double>().normalized();  // unit in double, not only in float
+    // Against the state drawn (a diverged panel's last good one), not the world's.
+    r.hit = raycast(scene_->model, p.state(), r.origin, r.direction, (b - a).norm(), true);
     break;
   }
   return r;
