@@ -332,13 +332,16 @@ struct Server::Impl {
 
   // --- sessions ---
 
+  HttpError noSuchSession(const std::string& id) const {
+    return HttpError(404, "no session \"" + id.substr(0, 40) + "\" (closed, or expired after " +
+                              numberText(o.idleTimeout) + " s without a request or a stream)");
+  }
+
   std::shared_ptr<WebSession> session(const Request& req) {
     const std::string id = req.matches[1];
     std::lock_guard<std::mutex> lk(sessionsM);
     const auto it = sessions.find(id);
-    if (it == sessions.end())
-      throw HttpError(404, "no session \"" + id.substr(0, 40) + "\" (closed, or expired after " +
-                               numberText(o.idleTimeout) + " s without a request or a stream)");
+    if (it == sessions.end()) throw noSuchSession(id);
     it->second->live->touch();
     return it->second;
   }
@@ -1164,7 +1167,7 @@ void Server::Impl::routesSetUp() {
       std::lock_guard<std::mutex> lk(sessionsM);
       if (sessions.count(id)) return notFound(req, res);
     }
-    throw HttpError(404, "no session \"" + id.substr(0, 40) + "\"");
+    throw noSuchSession(id);
   };
   route("GET", anyId + "(/.*)?", noSession);
   route("POST", anyId + "(/.*)?", noSession);

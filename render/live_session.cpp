@@ -22,6 +22,7 @@ double wallNow() {
 constexpr double kWindow = 1.0;  // [s] the rates of the stats are measured over
 constexpr int kMaxClips = 8;     // kept per session; the oldest finished one goes first
 constexpr int kMaxClipsAtOnce = 2;
+constexpr double kMaxOwed = 0.25;  // [s] of wall time a tick may make up for
 
 }  // namespace
 
@@ -208,7 +209,11 @@ void LiveSession::advance(double now, double wallDt) {
   // Seeking runs as fast as it can but still hands the thread back every tick, so that frames
   // show the progress and requests get the lock.
   const double budgetEnd = now + config_.physicsBudget / config_.fps;
-  if (!seekTo_) goal_ += speed_ * std::min(wallDt, 0.25);  // a stall (a long step) is not owed
+  if (!seekTo_) {
+    // A stall (a long step, a wait for the turn to draw) is not owed, but it is falling behind.
+    goal_ += speed_ * std::min(wallDt, kMaxOwed);
+    if (wallDt > kMaxOwed) behindTick_ = true;
+  }
   const double goal = seekTo_ ? *seekTo_ : goal_;
   for (;;) {
     double t = std::numeric_limits<double>::infinity(), dt = t;

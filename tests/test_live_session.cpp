@@ -16,7 +16,7 @@ using namespace substep::render;
 
 namespace {
 
-std::unique_ptr<LiveSession> live(const std::string& scene) {
+std::unique_ptr<LiveSession> live(const std::string& scene, std::shared_ptr<FairGate> drawGate = nullptr) {
   auto s = std::make_shared<const Scene>(loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + scene));
   Look look;
   look.camera = chooseCamera(*s, {});
@@ -24,6 +24,7 @@ std::unique_ptr<LiveSession> live(const std::string& scene) {
   c.width = 160;
   c.height = 96;
   c.fps = 20;
+  c.drawGate = std::move(drawGate);
   return std::make_unique<LiveSession>(s, std::vector<PanelSetup>{{resolve(s->solver), ""}}, look, c);
 }
 
@@ -88,6 +89,23 @@ TEST(LiveSession, ADivergencePausesAndSaysWhy) {
   s->reset();
   EXPECT_EQ(s->stats().status, "");
   EXPECT_FALSE(s->stats().panels[0].diverged);
+}
+
+// A tick that comes late (here: its draw waits a second for its turn) makes up for 0.25 s only,
+// and the stats say the session fell behind.
+TEST(LiveSession, ALateTickFallsBehindAndSaysSo) {
+  auto gate = std::make_shared<FairGate>(1);
+  auto s = live("stack.json", gate);
+  s->play(1.0);
+  LiveSession::Viewer v(*s);
+  ASSERT_GT(s->waitFrame(0, 60).seq, 0);
+  {
+    FairGate::Turn hold(gate.get());  // the next draw waits
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+  }
+  const LiveStats st = waitFor(*s, [](const LiveStats& x) { return x.behind; });
+  EXPECT_TRUE(st.behind);
+  EXPECT_LT(st.achieved, 0.95);
 }
 
 // Turns go in the order they were asked for, `slots` at a time.
