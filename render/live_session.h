@@ -24,6 +24,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <exception>
 #include <functional>
 #include <map>
 #include <memory>
@@ -134,35 +135,17 @@ class LiveSession {
   const LiveConfig& config() const { return config_; }
 
   // Any change of the simulation or of what is drawn, under the session's lock, between steps;
-  // the next tick draws it. What `f` throws propagates, and nothing is redrawn then.
+  // the next tick draws it. What `f` throws propagates.
   template <class F>
   auto change(F&& f) {
-    std::lock_guard<std::mutex> lk(m_);
-    dirty_ = true;
-    struct Sync {  // the look goes to the session however f returns (picking reads its camera)
-      LiveSession& s;
-      ~Sync() {
-        s.session_.setLook(s.look_);
-        s.republish();
-      }
-    } sync{*this};
-    return f(session_, look_);
+    return apply(std::forward<F>(f), false);
   }
   // The same for a change that starts the panels again (other panels, another scene): from
-  // t = 0 afterwards, a divergence forgotten, playing on if it played.
+  // t = 0 afterwards, a divergence forgotten, playing on if it played; when `f` throws (the
+  // panels were left as they were), the play state stays too.
   template <class F>
   auto restart(F&& f) {
-    std::lock_guard<std::mutex> lk(m_);
-    dirty_ = true;
-    struct Sync {
-      LiveSession& s;
-      ~Sync() {
-        s.session_.setLook(s.look_);
-        s.restarted();
-        s.republish();
-      }
-    } sync{*this};
-    return f(session_, look_);
+    return apply(std::forward<F>(f), true);
   }
   // Reading under the lock.
   template <class F>
@@ -226,6 +209,22 @@ class LiveSession {
     std::shared_ptr<const std::string> jpeg;
   };
 
+  template <class F>
+  auto apply(F&& f, bool restart) {
+    std::lock_guard<std::mutex> lk(m_);
+    dirty_ = true;
+    struct Sync {  // the look goes to the session however f returns (picking reads its camera)
+      LiveSession& s;
+      bool restart;
+      int exceptions = std::uncaught_exceptions();
+      ~Sync() {
+        s.session_.setLook(s.look_);
+        if (restart && std::uncaught_exceptions() == exceptions) s.restarted();
+        s.republish();
+      }
+    } sync{*this, restart};
+    return f(session_, look_);
+  }
   void restarted();  // under m_
   // Under m_: the stats of the simulation as it is now, published at once (a request's answer
   // and the next stats agree), with the rates of the last tick.

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <thread>
 
 using namespace substep;
@@ -86,6 +87,9 @@ TEST(LiveSession, ADivergencePausesAndSaysWhy) {
   EXPECT_TRUE(st.panels[0].diverged);
   EXPECT_FALSE(st.playing);
   EXPECT_NE(st.status.find("diverged"), std::string::npos) << st.status;
+  // A restart that is refused (other panels that cannot be made) leaves the session as it was.
+  EXPECT_THROW(s->restart([](RenderSession&, Look&) { throw std::invalid_argument("refused"); }), std::invalid_argument);
+  EXPECT_NE(s->stats().status.find("diverged"), std::string::npos);
   s->reset();
   EXPECT_EQ(s->stats().status, "");
   EXPECT_FALSE(s->stats().panels[0].diverged);
