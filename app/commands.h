@@ -11,5 +11,6 @@ void addRunCommand(CLI::App& app, std::function<int()>& action);
 void addScenesCommand(CLI::App& app, std::function<int()>& action);
 void addRenderCommand(CLI::App& app, std::function<int()>& action);
 void addSnapshotCommand(CLI::App& app, std::function<int()>& action);
+void addServeCommand(CLI::App& app, std::function<int()>& action);
 
 }  // namespace substep::app

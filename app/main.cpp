@@ -14,5 +14,6 @@ int main(int argc, char** argv) {
   addScenesCommand(app, action);
   addRenderCommand(app, action);
   addSnapshotCommand(app, action);
+  addServeCommand(app, action);
   return runCommandLine(app, argc, argv, "substep", [&] { return action ? action() : 0; });
 }

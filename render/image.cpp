@@ -41,10 +41,27 @@ std::vector<uint8_t> encodePng(const Image& img) {
   return out;
 }
 
+std::string encodeJpeg(const Image& img, int quality) {
+  std::string out;
+  out.reserve(static_cast<size_t>(img.width) * img.height / 8);
+  auto sink = [](void* ctx, void* data, int size) { static_cast<std::string*>(ctx)->append(static_cast<char*>(data), size); };
+  if (!stbi_write_jpg_to_func(sink, &out, img.width, img.height, 4, img.rgba.data(), std::clamp(quality, 1, 100)))
+    throw std::runtime_error("JPEG encoding failed (" + std::to_string(img.width) + "x" + std::to_string(img.height) + ")");
+  return out;
+}
+
 Image decodePng(const std::vector<uint8_t>& bytes) {
+  try {
+    return decodeImage(bytes.data(), bytes.size());
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(std::string("not a readable PNG: ") + e.what());
+  }
+}
+
+Image decodeImage(const void* bytes, size_t size) {
   int w = 0, h = 0, n = 0;
-  stbi_uc* data = stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &w, &h, &n, 4);
-  if (!data) throw std::runtime_error(std::string("not a readable PNG: ") + stbi_failure_reason());
+  stbi_uc* data = stbi_load_from_memory(static_cast<const stbi_uc*>(bytes), static_cast<int>(size), &w, &h, &n, 4);
+  if (!data) throw std::runtime_error(stbi_failure_reason());
   Image img;
   img.width = w;
   img.height = h;

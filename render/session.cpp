@@ -67,16 +67,19 @@ void RenderSession::reset() {
   for (int i = 0; i < panelCount(); ++i) setPanel(i, panel(i).setup());
 }
 
-void RenderSession::setPanels(const std::vector<PanelSetup>& panels) {
+void RenderSession::setPanels(const std::vector<PanelSetup>& panels) { setScene(scene_, panels); }
+
+void RenderSession::setScene(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels) {
   std::vector<std::unique_ptr<Panel>> made;
   for (size_t i = 0; i < panels.size(); ++i) {
     try {
-      made.push_back(std::make_unique<Panel>(*scene_, panels[i]));
+      made.push_back(std::make_unique<Panel>(*scene, panels[i]));
     } catch (const std::invalid_argument& e) {
       throw PanelError(static_cast<int>(i), e.what());
     }
   }
-  panels_ = std::move(made);  // all or nothing
+  panels_ = std::move(made);  // all or nothing; the worlds go before the scene they refer to
+  scene_ = std::move(scene);
 }
 
 void RenderSession::setPanel(int i, const PanelSetup& setup) {
@@ -114,6 +117,43 @@ DrawList RenderSession::drawList(int i, const State* state) const {
   DrawList dl = buildDrawList(scene_->model, s, p.diverged() ? nullptr : &p.world().manifolds(), cam, look_.view, hud);
   if (!lone) dl.label = shortSettingsLine(p.settings());
   return dl;
+}
+
+RenderSession::Pick RenderSession::pick(int width, int height, double x, double y) const {
+  Pick r;
+  const std::vector<Viewport> grid = gridLayout(width, height, panelCount());
+  for (size_t i = 0; i < grid.size(); ++i) {
+    const Viewport& v = grid[i];
+    if (x < v.x || y < v.y || x >= v.x + v.width || y >= v.y + v.height) continue;
+    const Panel& p = panel(static_cast<int>(i));
+    const Camera cam = placeCamera(look_.camera, scene_->model, p.state(), look_.orbit);
+    // The pixel's centre back through the panel's projection, near plane to far plane.
+    const float aspect = static_cast<float>(v.width) / static_cast<float>(v.height);
+    const Mat4f inv = (cam.projection(aspect) * cam.view()).inverse();
+    const float nx = static_cast<float>(2 * (x - v.x) / v.width - 1), ny = static_cast<float>(1 - 2 * (y - v.y) / v.height);
+    auto unproject = [&](float z) {
+      const Vec4f h = inv * Vec4f(nx, ny, z, 1);
+      return Vec3f(h.head<3>() / h.w());
+    };
+    const Vec3f a = unproject(-1), b = unproject(1);
+    r.panel = static_cast<int>(i);
+    r.origin = a.cast<double>();
+    r.direction = (b - a).cast<double>().normalized();  // unit in double, not only in float
+    // Against the state drawn (a diverged panel's last good one), not the world's.
+    r.hit = raycast(scene_->model, p.state(), r.origin, r.direction, (b - a).norm(), true);
+    break;
+  }
+  return r;
+}
+
+void RenderSession::push(int from, int body, const Vec3& impulse, const Vec3& point) {
+  const BodyState& b = panel(from).state().bodies.at(static_cast<size_t>(body));
+  const Vec3 local = b.q.conjugate() * (point - b.x);
+  for (auto& p : panels_) {
+    if (p->diverged()) continue;
+    const BodyState& pb = p->world_->state().bodies[static_cast<size_t>(body)];
+    p->world_->applyImpulse(body, impulse, pb.x + pb.q * local);
+  }
 }
 
 std::vector<DrawList> RenderSession::drawLists() const {

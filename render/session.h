@@ -109,6 +109,8 @@ class RenderSession {
   // Replace every panel, or one, starting from the scene's initial state. Throw PanelError.
   void setPanels(const std::vector<PanelSetup>& panels);
   void setPanel(int i, const PanelSetup& setup);
+  // Another scene, with its panels, from its initial state. Throws PanelError (nothing changed).
+  void setScene(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels);
   // Changes a panel's solver between steps; it goes on from its state (World::setSettings).
   void setSettings(int i, const SolverSettings& settings);
 
@@ -118,6 +120,20 @@ class RenderSession {
     look_.camera = camera;
     look_.orbit = orbit;
   }
+
+  // What pixel (x, y) of a frame of width x height (the grid of gridLayout()) shows: the panel
+  // under it and the nearest dynamic body along its ray. panel -1: between panels; hit.body -1:
+  // no body.
+  struct Pick {
+    int panel = -1;
+    Vec3 origin = Vec3::Zero(), direction = Vec3::UnitZ();  // the ray, unit direction [m]
+    RayHit hit;
+  };
+  Pick pick(int width, int height, double x, double y) const;
+  // An impulse [N s] at `point` on `body` as panel `from` has it, applied to every panel that has
+  // not diverged at the same point of the body's frame, so that panels stay comparable. Throws
+  // std::invalid_argument for a static body or a non-finite impulse.
+  void push(int from, int body, const Vec3& impulse, const Vec3& point);
 
   // Panel i's draw list: its camera, the HUD (a lone panel: scene, settings, time; one of a grid:
   // time, with its settings as the label); drawn at `state` instead of the panel's when given.

@@ -8,13 +8,41 @@ SUBSTEP_PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libfcl-dev libccd-dev libassimp-dev
   libosmesa6-dev libstb-dev fonts-dejavu-core
-  nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev
+  nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libcpp-httplib-dev
   libdart-external-odelcpsolver-dev libbullet-dev
   ffmpeg gnuplot-nox
 )
 
 # The fuzz build's compiler: clang 14 with libFuzzer and the sanitizer runtimes.
 SUBSTEP_FUZZ_PACKAGES=(clang libclang-rt-14-dev)
+
+# The browser test's browser (about 470 MB installed), with node and npm from Debian when the
+# machine has no node at all (substep_node_packages).
+SUBSTEP_BROWSER_PACKAGES=(chromium)
+
+# The Debian packages that bring node (18 or later) and npm, for those of the two not on PATH.
+substep_node_packages() {
+  command -v node >/dev/null || echo nodejs
+  command -v npm >/dev/null || echo npm
+}
+
+# substep_npm DIR: the browser test's npm packages (playwright-core, from the committed lock) into
+# DIR/node_modules; again only when the lock changed.
+substep_npm() {
+  local dir=$1 major
+  major=$(node -p 'process.versions.node.split(".")[0]')
+  if ((major < 18)); then
+    echo "the browser test needs node 18 or later; this node is $(node --version)" >&2
+    exit 1
+  fi
+  if cmp -s "$dir/package-lock.json" "$dir/node_modules/.substep-lock" 2>/dev/null; then return 0; fi
+  echo "== npm ci in $dir (playwright-core)"
+  (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error) || {
+    echo "npm ci failed in $dir" >&2
+    exit 1
+  }
+  cp "$dir/package-lock.json" "$dir/node_modules/.substep-lock"
+}
 
 # substep_install [extra packages...]
 substep_install() {

@@ -207,3 +207,44 @@ TEST(RenderSession, FrameIsTheDrawListsInAGrid) {
   const uint8_t* border = img.pixel(79, 60);  // the dark column between the panels
   EXPECT_LT(border[0] + border[1] + border[2], 30);
 }
+
+// A pixel's ray finds the body drawn there, in the panel under it; a push moves that body in
+// every panel, at the same point of it.
+TEST(RenderSession, PickFindsTheBodyUnderAPixelAndPushMovesItInEveryPanel) {
+  const auto scene = sceneFile("box_on_ground.json");
+  Look look;
+  look.camera = chooseCamera(*scene, {});
+  RenderSession one(scene, {{settings(Algorithm::A2), ""}}, look);
+  RenderSession::Pick p = one.pick(320, 180, 160, 90);  // the camera looks at the box
+  EXPECT_EQ(p.panel, 0);
+  ASSERT_GE(p.hit.body, 0);
+  EXPECT_EQ(scene->model.bodies[static_cast<size_t>(p.hit.body)].name, "box");
+  EXPECT_NEAR(p.direction.norm(), 1, 1e-9);
+  EXPECT_LT((p.origin + p.hit.distance * p.direction - p.hit.point).norm(), 1e-6);
+  EXPECT_EQ(one.pick(320, 180, 2, 2).hit.body, -1);  // sky
+
+  RenderSession two(scene, {{settings(Algorithm::A2), "a2"}, {settings(Algorithm::A5), "a5"}}, look);
+  p = two.pick(320, 180, 240, 90);  // the right half: panel 1's centre
+  EXPECT_EQ(p.panel, 1);
+  ASSERT_GE(p.hit.body, 0);
+  two.push(p.panel, p.hit.body, Vec3(3, 0, 0), p.hit.point);
+  two.step();
+  for (int i = 0; i < 2; ++i) EXPECT_GT(two.panel(i).state().bodies[static_cast<size_t>(p.hit.body)].v.x(), 1) << i;
+  EXPECT_THROW(two.push(0, 0, Vec3(0, 1, 0), Vec3::Zero()), std::invalid_argument);  // the ground is static
+}
+
+// Another scene replaces the panels at once; a scene whose settings fail changes nothing.
+TEST(RenderSession, SetSceneReplacesSceneAndPanels) {
+  RenderSession s(sceneFile("stack.json"), {{settings(Algorithm::A2), ""}});
+  s.advanceTo(0.5);
+  s.setScene(sceneFile("chain.json"), {{settings(Algorithm::A5), "a"}, {settings(Algorithm::A2), "b"}});
+  EXPECT_EQ(s.panelCount(), 2);
+  EXPECT_EQ(s.panel(0).state().time, 0);
+  EXPECT_EQ(s.scene().model.joints.size(), 30u);
+  Scene bad = *sceneFile("stack.json");
+  bad.model.bodies[1].isStatic = false;
+  bad.model.bodies[1].shape.type = ShapeType::Plane;  // World refuses it
+  EXPECT_THROW(s.setScene(std::make_shared<const Scene>(bad), {{settings(Algorithm::A2), ""}}), PanelError);
+  EXPECT_EQ(s.panelCount(), 2);
+  EXPECT_EQ(s.scene().model.joints.size(), 30u);
+}

@@ -1,0 +1,595 @@
+#include "render/live_session.h"
+
+#include "render/frame_sink.h"
+#include "render/scene_builder.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <stdexcept>
+
+namespace substep::render {
+
+namespace {
+
+double wallNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+constexpr double kWindow = 1.0;  // [s] the rates of the stats are measured over
+constexpr int kMaxClips = 8;     // kept per session; the oldest finished one goes first
+constexpr int kMaxClipsAtOnce = 2;
+constexpr double kMaxOwed = 0.25;  // [s] of wall time a tick may make up for
+
+}  // namespace
+
+FairGate::Turn::Turn(FairGate* g) : g_(g) {
+  if (!g_) return;
+  std::unique_lock<std::mutex> lk(g_->m_);
+  const unsigned long long ticket = g_->next_++;
+  g_->cv_.wait(lk, [&] { return ticket == g_->head_ && g_->busy_ < g_->slots_; });
+  ++g_->head_;
+  ++g_->busy_;
+  lk.unlock();
+  g_->cv_.notify_all();  // the next ticket may go too when there is another slot
+}
+
+int FairGate::waiting() const {
+  std::lock_guard<std::mutex> lk(m_);
+  return static_cast<int>(next_ - head_);
+}
+
+FairGate::Turn::~Turn() {
+  if (!g_) return;
+  {
+    std::lock_guard<std::mutex> lk(g_->m_);
+    --g_->busy_;
+  }
+  g_->cv_.notify_all();
+}
+
+LiveSession::LiveSession(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels, const Look& look,
+                         const LiveConfig& config)
+    : config_(config), session_(std::move(scene), panels, look), look_(look) {
+  config_.fps = std::max(1, config_.fps);
+  lastTouch_ = wallNow();
+  collectStats(stats_);  // stats from the start, before the first tick
+  thread_ = std::thread([this] { run(); });
+  encoder_ = std::thread([this] { encodeLoop(); });
+}
+
+LiveSession::~LiveSession() { close(); }
+
+void LiveSession::close() {
+  if (closed_.exchange(true)) return;
+  {
+    std::lock_guard<std::mutex> lk(stopM_);
+    stop_ = true;
+  }
+  stopCv_.notify_all();
+  {
+    std::lock_guard<std::mutex> lk(frameM_);
+  }
+  frameCv_.notify_all();
+  {
+    std::lock_guard<std::mutex> lk(encM_);
+  }
+  encCv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  if (encoder_.joinable()) encoder_.join();
+  // Clips being encoded finish (ffmpeg is quick); their threads take clipM_ at the end.
+  std::vector<std::thread*> encoders;
+  {
+    std::lock_guard<std::mutex> lk(clipM_);
+    for (auto& [id, c] : clips_)
+      if (c->encoder.joinable()) encoders.push_back(&c->encoder);
+  }
+  for (std::thread* t : encoders) t->join();
+}
+
+void LiveSession::touch() { lastTouch_ = wallNow(); }
+
+double LiveSession::idleSeconds() const { return viewers_ > 0 ? 0.0 : std::max(0.0, wallNow() - lastTouch_); }
+
+void LiveSession::play(double speed) {
+  std::lock_guard<std::mutex> lk(m_);
+  if (!playing_) goal_ = session_.panel(0).state().time;
+  playing_ = true;
+  speed_ = speed;
+  seekTo_.reset();
+  dirty_ = true;
+  republish();
+}
+
+void LiveSession::pause() {
+  std::lock_guard<std::mutex> lk(m_);
+  playing_ = false;
+  seekTo_.reset();
+  dirty_ = true;
+  republish();
+}
+
+bool LiveSession::playing() const {
+  std::lock_guard<std::mutex> lk(m_);
+  return playing_;
+}
+
+double LiveSession::step(int count) {
+  std::lock_guard<std::mutex> lk(m_);
+  playing_ = false;
+  seekTo_.reset();
+  for (int k = 0; k < count && !session_.firstDiverged(); ++k) session_.step();
+  if (const Panel* p = session_.firstDiverged(); p && !reportedDivergence_) {
+    status_ = p->problem();
+    reportedDivergence_ = true;
+  }
+  dirty_ = true;
+  republish();
+  return session_.panel(0).state().time;
+}
+
+void LiveSession::reset() {
+  std::lock_guard<std::mutex> lk(m_);
+  session_.reset();
+  restarted();
+  republish();
+}
+
+void LiveSession::restarted() {
+  seekTo_.reset();
+  goal_ = 0;
+  status_.clear();
+  reportedDivergence_ = false;
+  dirty_ = true;
+}
+
+void LiveSession::seek(double t) {
+  std::lock_guard<std::mutex> lk(m_);
+  if (t + 0.5 * session_.panel(0).settings().dt < session_.panel(0).state().time) {
+    session_.reset();  // panels only go forward
+    status_.clear();
+    reportedDivergence_ = false;
+  }
+  seekTo_ = t;
+  playing_ = false;
+  dirty_ = true;
+  republish();
+}
+
+void LiveSession::republish() {
+  LiveStats s;
+  collectStats(s);
+  s.seeking = seekTo_.has_value();
+  {
+    std::lock_guard<std::mutex> lk(frameM_);
+    s.seq = stats_.seq + 1;
+    s.frames = stats_.frames;
+    s.fps = stats_.fps;
+    s.achieved = s.playing ? stats_.achieved : 0;
+    s.behind = s.playing && stats_.behind;
+    s.physicsMs = stats_.physicsMs;
+    s.drawMs = stats_.drawMs;
+    s.encodeMs = stats_.encodeMs;
+    s.jpegBytes = stats_.jpegBytes;
+    stats_ = std::move(s);
+  }
+  frameCv_.notify_all();
+}
+
+// --- the session's thread --------------------------------------------------------------------
+
+void LiveSession::run() {
+  std::unique_ptr<GlRenderer> renderer;
+  try {
+    renderer = std::make_unique<GlRenderer>(config_.width, config_.height, config_.renderer);
+  } catch (const std::exception& e) {
+    std::lock_guard<std::mutex> lk(m_);
+    status_ = std::string("cannot draw: ") + e.what();
+  }
+  const double period = 1.0 / config_.fps;
+  double next = wallNow();
+  lastTick_ = windowStart_ = next;
+  while (!stop_) {
+    tick(renderer.get(), wallNow());
+    next += period;
+    const double now = wallNow();
+    if (next < now) next = now;  // late: the next tick now, no catching up on missed ones
+    std::unique_lock<std::mutex> lk(stopM_);
+    stopCv_.wait_for(lk, std::chrono::duration<double>(next - now), [&] { return stop_.load(); });
+  }
+  renderer.reset();  // its context is current on this thread
+}
+
+void LiveSession::advance(double now, double wallDt) {
+  std::unique_lock<std::mutex> lk(m_);
+  if (!playing_ && !seekTo_) return;
+  // Seeking runs as fast as it can but still hands the thread back every tick, so that frames
+  // show the progress and requests get the lock.
+  const double budgetEnd = now + config_.physicsBudget / config_.fps;
+  if (!seekTo_) {
+    // A stall (a long step, a wait for the turn to draw) is not owed, but it is falling behind.
+    goal_ += speed_ * std::min(wallDt, kMaxOwed);
+    if (wallDt > kMaxOwed) behindTick_ = true;
+  }
+  const double goal = seekTo_ ? *seekTo_ : goal_;
+  for (;;) {
+    double t = std::numeric_limits<double>::infinity(), dt = t;
+    for (int i = 0; i < session_.panelCount(); ++i) {
+      const Panel& p = session_.panel(i);
+      if (p.diverged()) continue;
+      t = std::min(t, p.state().time);
+      dt = std::min(dt, p.settings().dt);
+    }
+    if (!std::isfinite(t) || t + 0.5 * dt > goal) {  // there, or every panel diverged
+      if (seekTo_) {
+        seekTo_.reset();
+        playing_ = false;
+      }
+      break;
+    }
+    if (wallNow() > budgetEnd) {
+      if (!seekTo_) {
+        goal_ = t;  // what could not be done is dropped
+        behindTick_ = true;
+      }
+      break;
+    }
+    session_.advanceTo(t + dt);
+    dirty_ = true;
+    if (const Panel* p = session_.firstDiverged(); p && !reportedDivergence_) {
+      status_ = p->problem();
+      reportedDivergence_ = true;
+      playing_ = false;
+      seekTo_.reset();
+      break;
+    }
+    lk.unlock();  // requests may change the session between steps
+    std::this_thread::yield();
+    lk.lock();
+    if (!playing_ && !seekTo_) break;
+  }
+}
+
+void LiveSession::collectStats(LiveStats& s) {
+  s.playing = playing_;
+  s.seeking = seekTo_.has_value();
+  s.speed = speed_;
+  s.status = status_;
+  const int n = session_.panelCount();
+  prevSteps_.resize(static_cast<size_t>(n), 0);
+  prevPhysics_.resize(static_cast<size_t>(n), 0);
+  lastStepMs_.resize(static_cast<size_t>(n), std::numeric_limits<double>::quiet_NaN());
+  for (int i = 0; i < n; ++i) {
+    const Panel& p = session_.panel(i);
+    const World& w = p.world();
+    const StepReport& r = w.lastReport();
+    LivePanelStats ps;
+    ps.name = p.name();
+    ps.settings = settingsLine(p.settings());
+    ps.time = p.state().time;
+    ps.steps = p.steps();
+    const size_t k = static_cast<size_t>(i);
+    if (p.steps() < prevSteps_[k]) {  // replaced or reset
+      prevSteps_[k] = 0;
+      prevPhysics_[k] = 0;
+    }
+    if (p.steps() > prevSteps_[k])
+      lastStepMs_[k] = 1e3 * (p.physicsSeconds() - prevPhysics_[k]) / static_cast<double>(p.steps() - prevSteps_[k]);
+    prevSteps_[k] = p.steps();
+    prevPhysics_[k] = p.physicsSeconds();
+    ps.stepMs = lastStepMs_[k];
+    ps.stages = r.times;
+    ps.contacts = r.contactPoints;
+    ps.manifolds = r.manifolds;
+    ps.pairs = r.pairs;
+    ps.diverged = p.diverged();
+    ps.problem = p.problem();
+    if (!p.diverged()) {  // a diverged world's measures are not numbers
+      ps.penetration = w.maxPenetration();
+      ps.jointError = w.maxJointError();
+      ps.kinetic = w.kineticEnergy();
+      ps.potential = w.potentialEnergy();
+    }
+    s.panels.push_back(std::move(ps));
+  }
+}
+
+void LiveSession::tick(GlRenderer* renderer, double now) {
+  const double wallDt = now - lastTick_;
+  lastTick_ = now;
+  behindTick_ = false;
+  advance(now, wallDt);
+  const double physicsEnd = wallNow();
+
+  bool imageWanted;
+  {
+    std::lock_guard<std::mutex> lk(frameM_);
+    imageWanted = imageWanted_;
+  }
+  const bool recording = recording_ > 0;
+  std::vector<DrawList> lists;
+  LiveStats s;
+  double simTime;
+  {
+    std::lock_guard<std::mutex> lk(m_);
+    // Drawn while someone looks and something changed; every tick while a clip records.
+    if (renderer && (recording || ((viewers_ > 0 || imageWanted) && dirty_))) {
+      lists = session_.drawLists();
+      dirty_ = false;
+    }
+    collectStats(s);
+    simTime = session_.panel(0).state().time;
+  }
+  std::shared_ptr<Image> image;
+  double drawEnd = physicsEnd, drawWait = 0;
+  if (!lists.empty()) {
+    try {
+      image = spareImage();
+      FairGate::Turn turn(config_.drawGate.get());
+      const double d0 = wallNow();  // the draw's own time, not the wait for its turn
+      renderer->render(gridViews(lists, renderer->width(), renderer->height()), *image);
+      drawEnd = wallNow();
+      drawWait = d0 - physicsEnd;
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lk(m_);
+      status_ = std::string("cannot draw: ") + e.what();
+      playing_ = false;
+      image.reset();
+    }
+  }
+
+  // Rates over the last second.
+  const double simNow = simTime;
+  if (simNow >= lastSimTime_) windowSim_ += simNow - lastSimTime_;
+  lastSimTime_ = simNow;
+  windowPhysics_ += physicsEnd - now;
+  ++windowTicks_;
+  windowBehind_ = windowBehind_ || behindTick_;
+  if (image) {
+    ++windowFrames_;
+    windowDraw_ += drawEnd - physicsEnd - drawWait;
+  }
+  if (now - windowStart_ >= kWindow) {
+    const double span = now - windowStart_;
+    rateFps_ = windowFrames_ / span;
+    rateAchieved_ = windowSim_ / span;
+    ratePhysics_ = 1e3 * windowPhysics_ / windowTicks_;
+    rateDraw_ = windowFrames_ ? 1e3 * windowDraw_ / windowFrames_ : 0;
+    rateBehind_ = windowBehind_;
+    windowStart_ = now;
+    windowSim_ = windowPhysics_ = windowDraw_ = 0;
+    windowFrames_ = windowTicks_ = 0;
+    windowBehind_ = false;
+  }
+  s.fps = rateFps_;
+  s.achieved = s.playing ? rateAchieved_ : 0;
+  // Behind: a tick fell short in the last second and the second as a whole did too (a tick
+  // late now and then is not worth a warning).
+  s.behind = s.playing && rateBehind_ && rateAchieved_ < 0.95 * s.speed;
+  s.physicsMs = ratePhysics_;
+  s.drawMs = rateDraw_;
+  s.encodeMs = encodeMs_;
+  if (!image) {
+    publish(nullptr, nullptr, s, simTime, now);
+    return;
+  }
+  // To the encoder, which publishes it with its stats. One frame waits at most: when JPEG is the
+  // slower half, the session thread waits here rather than drawing frames nobody gets.
+  {
+    std::unique_lock<std::mutex> lk(encM_);
+    encCv_.wait(lk, [&] { return !drawn_ || stop_; });
+    drawn_ = Drawn{std::move(image), s, simTime, now};
+  }
+  encCv_.notify_all();
+}
+
+std::shared_ptr<Image> LiveSession::spareImage() {
+  std::lock_guard<std::mutex> lk(encM_);
+  if (spare_.empty()) return std::make_shared<Image>();
+  std::shared_ptr<Image> img = std::move(spare_.back());
+  spare_.pop_back();
+  return img;
+}
+
+void LiveSession::encodeLoop() {
+  for (;;) {
+    Drawn d;
+    {
+      std::unique_lock<std::mutex> lk(encM_);
+      encCv_.wait(lk, [&] { return drawn_ || stop_; });
+      if (stop_) return;
+      d = std::move(*drawn_);
+      drawn_.reset();
+    }
+    encCv_.notify_all();
+    std::shared_ptr<const std::string> jpeg;
+    double t0 = 0;
+    try {
+      FairGate::Turn turn(config_.encodeGate.get());
+      t0 = wallNow();
+      jpeg = std::make_shared<const std::string>(encodeJpeg(*d.image, config_.jpegQuality));
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lk(m_);
+      status_ = std::string("cannot encode: ") + e.what();
+      continue;
+    }
+    const double ms = 1e3 * (wallNow() - t0);
+    encodeMs_ = encodeMs_ > 0 ? 0.9 * encodeMs_ + 0.1 * ms : ms;  // smoothed over about ten frames
+    d.stats.encodeMs = encodeMs_;
+    publish(std::move(jpeg), std::move(d.image), d.stats, d.simTime, d.wall);
+  }
+}
+
+void LiveSession::publish(std::shared_ptr<const std::string> jpeg, std::shared_ptr<Image> image, const LiveStats& s,
+                          double simTime, double now) {
+  {
+    std::lock_guard<std::mutex> lk(frameM_);
+    if (jpeg) {
+      latest_.seq += 1;
+      latest_.jpeg = jpeg;
+      latest_.time = simTime;
+      std::swap(front_, image);
+      // The frame before is drawn into again, unless a request still holds it (never a torn image).
+      if (image && image.use_count() == 1) {
+        std::lock_guard<std::mutex> el(encM_);
+        if (spare_.empty()) spare_.push_back(std::move(image));
+      }
+      history_.push_back({now, jpeg});
+      while (!history_.empty() && history_.front().wall < now - config_.historySeconds) history_.pop_front();
+      imageWanted_ = false;
+      ++framesDrawn_;
+    }
+    const long long seq = stats_.seq + 1;
+    stats_ = s;
+    stats_.seq = seq;
+    stats_.frames = framesDrawn_;
+    stats_.jpegBytes = latest_.jpeg ? static_cast<int>(latest_.jpeg->size()) : 0;
+  }
+  frameCv_.notify_all();
+  if (!jpeg || recording_ == 0) return;
+  std::lock_guard<std::mutex> lk(clipM_);
+  for (auto& [id, c] : clips_) {
+    if (c->info.state != "recording") continue;
+    c->jpegs.push_back(jpeg);
+    c->info.frames = static_cast<int>(c->jpegs.size());
+    if (c->info.frames >= c->wanted) {
+      --recording_;
+      startEncoding(*c);
+    }
+  }
+}
+
+// --- what requests read ----------------------------------------------------------------------
+
+LiveFrame LiveSession::waitFrame(long long after, double timeout) {
+  std::unique_lock<std::mutex> lk(frameM_);
+  frameCv_.wait_for(lk, std::chrono::duration<double>(timeout), [&] { return closed_ || latest_.seq > after; });
+  return closed_ ? LiveFrame{} : latest_;
+}
+
+std::shared_ptr<const Image> LiveSession::image(double timeout) {
+  long long seq;
+  {
+    std::lock_guard<std::mutex> lk(frameM_);
+    // While a viewer watches, the front frame is at most a tick old.
+    if (front_ && viewers_ > 0) return front_;
+    seq = latest_.seq;
+  }
+  bool changed;
+  {
+    std::lock_guard<std::mutex> lk(m_);
+    changed = dirty_;
+  }
+  std::unique_lock<std::mutex> lk(frameM_);
+  if (!changed && front_) return front_;  // nothing changed since it was drawn
+  imageWanted_ = true;
+  frameCv_.wait_for(lk, std::chrono::duration<double>(timeout), [&] { return closed_ || latest_.seq > seq; });
+  return latest_.seq > seq || (!changed && front_) ? front_ : nullptr;
+}
+
+LiveStats LiveSession::waitStats(long long after, double timeout) const {
+  std::unique_lock<std::mutex> lk(frameM_);
+  frameCv_.wait_for(lk, std::chrono::duration<double>(timeout), [&] { return closed_ || stats_.seq > after; });
+  return stats_;
+}
+
+LiveStats LiveSession::stats() const {
+  std::lock_guard<std::mutex> lk(frameM_);
+  return stats_;
+}
+
+// --- clips -----------------------------------------------------------------------------------
+
+int LiveSession::record(const std::string& mode, double seconds) {
+  if (config_.ffmpeg.empty())
+    throw std::invalid_argument("clips need the ffmpeg program, which the server did not find (Debian: apt-get install ffmpeg)");
+  if (mode != "last" && mode != "next") throw std::invalid_argument("mode: expected last or next, got \"" + mode + "\"");
+  auto c = std::make_unique<Clip>();
+  c->info.mode = mode;
+  c->info.seconds = seconds;
+  if (mode == "last") {
+    std::lock_guard<std::mutex> lk(frameM_);
+    const double from = wallNow() - seconds;
+    for (const Stored& f : history_)
+      if (f.wall >= from) c->jpegs.push_back(f.jpeg);
+    if (c->jpegs.empty())
+      throw std::invalid_argument("no frames were drawn in the last " + numberText(seconds) +
+                                  " s: frames are drawn while the stream is watched");
+  } else {
+    c->wanted = std::max(1, static_cast<int>(std::lround(seconds * config_.fps)));
+  }
+  std::lock_guard<std::mutex> lk(clipM_);
+  if (closed_) throw std::invalid_argument("the session is closed");
+  int busy = 0;
+  for (const auto& [id, old] : clips_) busy += old->info.state == "recording" || old->info.state == "encoding";
+  if (busy >= kMaxClipsAtOnce)
+    throw std::invalid_argument("already making " + std::to_string(busy) + " clips; wait for one to finish");
+  // Room for it: the oldest finished clip goes (its file with it).
+  while (static_cast<int>(clips_.size()) >= kMaxClips) {
+    auto it = std::find_if(clips_.begin(), clips_.end(), [](const auto& kv) {
+      return kv.second->info.state == "done" || kv.second->info.state == "failed";
+    });
+    if (it == clips_.end()) break;
+    if (it->second->encoder.joinable()) it->second->encoder.join();
+    if (!it->second->info.path.empty()) std::remove(it->second->info.path.c_str());
+    clips_.erase(it);
+  }
+  c->info.id = nextClip_++;
+  Clip& ref = *c;
+  clips_[c->info.id] = std::move(c);
+  if (mode == "last") {
+    startEncoding(ref);
+  } else {
+    ref.info.state = "recording";
+    ++recording_;
+  }
+  return ref.info.id;
+}
+
+void LiveSession::startEncoding(Clip& c) {
+  c.info.state = "encoding";
+  c.info.frames = static_cast<int>(c.jpegs.size());
+  const std::string path = config_.clipFolder + "/clip-" + std::to_string(c.info.id) + ".mp4";
+  c.encoder = std::thread([this, &c, path] {
+    std::string error;
+    long long bytes = 0;
+    try {
+      VideoOptions vo;
+      vo.fps = config_.fps;
+      vo.crf = 23;
+      VideoSink sink(config_.ffmpeg, path, config_.width, config_.height, vo);
+      for (const auto& j : c.jpegs) sink.write(decodeImage(j->data(), j->size()));
+      sink.commit();
+      std::error_code ec;
+      bytes = static_cast<long long>(std::filesystem::file_size(path, ec));
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    std::lock_guard<std::mutex> lk(clipM_);
+    c.jpegs.clear();
+    c.jpegs.shrink_to_fit();
+    c.info.state = error.empty() ? "done" : "failed";
+    c.info.error = error;
+    c.info.bytes = bytes;
+    if (error.empty()) c.info.path = path;
+  });
+}
+
+std::optional<ClipInfo> LiveSession::clip(int id) const {
+  std::lock_guard<std::mutex> lk(clipM_);
+  const auto it = clips_.find(id);
+  if (it == clips_.end()) return std::nullopt;
+  return it->second->info;
+}
+
+std::vector<ClipInfo> LiveSession::clips() const {
+  std::lock_guard<std::mutex> lk(clipM_);
+  std::vector<ClipInfo> v;
+  for (const auto& [id, c] : clips_) v.push_back(c->info);
+  return v;
+}
+
+}  // namespace substep::render
