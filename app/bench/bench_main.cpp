@@ -158,16 +158,10 @@ void measureEnd(Run& r, const Scene& scene, PoseOf poseOf, VelocityOf velocityOf
   for (const Joint& j : model.joints) {
     const Pose A = poseOf(static_cast<size_t>(j.bodyA)), B = poseOf(static_cast<size_t>(j.bodyB));
     r.jointError = std::max(r.jointError, jointError(j, A, B));
-    if (j.type == JointType::Hinge && j.hasLimits) {
-      const double t = hingeAngle(j, A, B);
-      r.hingeExcess = std::max({r.hingeExcess, j.lower - t, t - j.upper});
-    } else if (j.type == JointType::ConeTwist) {
-      r.swingExcess = std::max(r.swingExcess, swingAngle(j, A, B) - j.swing);
-      if (j.hasLimits) {
-        const double t = twistAngle(j, A, B);
-        r.twistExcess = std::max({r.twistExcess, j.lower - t, t - j.upper});
-      }
-    }
+    const LimitExcess e = jointLimitExcess(j, A, B);
+    r.hingeExcess = std::max(r.hingeExcess, e.hinge);
+    r.swingExcess = std::max(r.swingExcess, e.swing);
+    r.twistExcess = std::max(r.twistExcess, e.twist);
   }
   r.limitExcess = std::max({r.hingeExcess, r.swingExcess, r.twistExcess});
 }
