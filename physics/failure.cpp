@@ -62,6 +62,14 @@ FailureWatch::FailureWatch(const Model& model, const State& initial, const Failu
     topSize_ = 2 * model.bodies[static_cast<size_t>(top_)].shape.boundingRadius();
   }
   energy0_ = mechanicalEnergy(model, initial);
+  // Without gravity the lifting energy is zero, and a spinning body's round-off would count as
+  // divergence: the kinetic energy at the start is in play too.
+  for (size_t i = 0; i < model.bodies.size(); ++i) {
+    const Body& b = model.bodies[i];
+    if (b.isStatic) continue;
+    const BodyState& x = initial.bodies[i];
+    energyScale_ += 0.5 * b.mass * x.v.squaredNorm() + 0.5 * x.w.dot(b.inertia.cwiseProduct(x.w));
+  }
   energyScale_ = std::max(energyScale_, 1e-9);
 }
 

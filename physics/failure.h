@@ -3,7 +3,8 @@
 //   collapse    a body is displaced sideways by more than half its size, or the structure's top
 //               falls by more than the size of the body that was on top
 //   divergence  a value is not finite or beyond the world's limits, or the mechanical energy
-//               has grown by more than 100 times the energy that lifts every body by its size
+//               has grown by more than 100 times the energy in play at the start: what lifts
+//               every body by its size, plus the kinetic energy (without gravity, only that)
 // A FailureWatch observes a run state by state and records when each first happened.
 #pragma once
 
