@@ -14,5 +14,9 @@ int main(int argc, char** argv) {
   addScenesCommand(app, action);
   addRenderCommand(app, action);
   addSnapshotCommand(app, action);
+  addSweepCommand(app, action);
+  addChartCommand(app, action);
+  addAtlasCommand(app, action);
+  addAdviseCommand(app, action);
   return runCommandLine(app, argc, argv, "substep", [&] { return action ? action() : 0; });
 }

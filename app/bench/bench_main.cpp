@@ -258,11 +258,6 @@ Run medianRun(std::vector<Run> runs) {
 }
 
 
-std::string scenePath(const std::string& name) {
-  if (name.find('/') != std::string::npos || (name.size() > 5 && name.substr(name.size() - 5) == ".json")) return name;
-  return app::assetsDir() + "/scenes/" + name + ".json";
-}
-
 std::string fmt(const char* f, double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, f, v);
@@ -512,7 +507,7 @@ int bench(const Options& opt) {
   std::vector<std::string> skipped;  // scenes without a Bullet peer, and why
   scenes.reserve(opt.scenes.size());  // results point at their scene's model
   for (const std::string& name : opt.scenes) {
-    const std::string path = scenePath(name);
+    const std::string path = app::scenePath(name);
     try {
       scenes.push_back(loadScene(path));
     } catch (const SceneError& e) {
