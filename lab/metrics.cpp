@@ -11,17 +11,6 @@ namespace {
 
 Vec3 angularMomentum(const Body& b, const BodyState& s) { return s.q * b.inertia.cwiseProduct(s.w); }  // world, about the centre
 
-double kineticEnergy(const Model& model, const State& s) {
-  double e = 0;
-  for (size_t i = 0; i < model.bodies.size(); ++i) {
-    const Body& b = model.bodies[i];
-    if (b.isStatic) continue;
-    const BodyState& x = s.bodies[i];
-    e += 0.5 * b.mass * x.v.squaredNorm() + 0.5 * x.w.dot(b.inertia.cwiseProduct(x.w));
-  }
-  return e;
-}
-
 // Total linear momentum and angular momentum about the origin of the dynamic bodies.
 void momentum(const Model& model, const State& s, Vec3& p, Vec3& l) {
   p.setZero();

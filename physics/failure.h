@@ -53,7 +53,10 @@ class FailureWatch {
   FailureReport report_;
 };
 
-// Mechanical energy of a state: kinetic and potential [J].
+// Energies of a state's dynamic bodies [J]: kinetic Σ ½ m |v|² + ½ v̌ᵀ I v̌, potential Σ -m g·x,
+// mechanical their sum.
+double kineticEnergy(const Model& model, const State& s);
+double potentialEnergy(const Model& model, const State& s);
 double mechanicalEnergy(const Model& model, const State& s);
 
 }  // namespace substep
