@@ -86,7 +86,8 @@ std::string yLabel(const std::string& metric) {
 std::string header(const std::string& title, const std::string& x, const std::string& y) {
   return "@TERMINAL@\nset output '@OUT@'\nset termoption noenhanced\nset title " + gpString(title) + "\nset xlabel " +
          gpString(x) + "\nset ylabel " + gpString(y) + "\nset grid xtics ytics mxtics mytics lc rgb '#dddddd'\n"
-         "set key outside right top box opaque\nset border lw 1.2\nset offsets graph 0.05, graph 0.2, graph 0.15, graph 0.1\n";
+         "set key outside right top box opaque\nset border lw 1.2\nset offsets graph 0.05, graph 0.2, graph 0.15, graph 0.1\n"
+         "set format x '%g'\nset format y '%g'\n";
 }
 
 // A floor for log axes: a zero error is drawn there (and said so).
@@ -252,6 +253,7 @@ bool havokChart(const std::string& scene, const std::vector<Point>& pts, const s
   c.data = data.str();
   c.script = "@TERMINAL@\nset output '@OUT@'\nset termoption noenhanced\nset multiplot layout 1,2 title " + gpString(c.title) +
              "\nset grid lc rgb '#dddddd'\nset key top right box opaque\nset logscale x 2\nset xlabel 'sub-steps n'\n"
+             "set format x '%g'\nset format y '%g'\n"
              "set logscale y\nset title 'error'\nset ylabel " + gpString(yLabel(metric)) + "\n" + errPlot.str() +
              "\nset title 'cost'\nset ylabel 'cost per step [ms]'\nunset logscale y\nset yrange [0:*]\n" + costPlot.str() +
              "\nunset multiplot\n";

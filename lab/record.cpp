@@ -85,8 +85,13 @@ std::string errorMetric(const Scene& scene) {
   return scene.model.joints.empty() ? "penetration" : "joint_error";
 }
 
-std::string runKey(const std::string& scene, const std::string& method, double dt, double seconds) {
-  return scene + " | " + method + " | h=" + stepText(dt) + " | " + numberText(seconds) + " s";
+std::string runKey(const Scene& scene, const std::string& method, double dt, double seconds) {
+  std::string key = sceneName(scene) + " | " + method + " | h=" + stepText(dt) + " | " + numberText(seconds) + " s";
+  if (scene.criteria && scene.criteria->reference) {
+    const SceneReference& r = *scene.criteria->reference;
+    key += std::string(" | against ") + referenceKindName(r.kind) + (r.method.empty() ? "" : " " + r.method);
+  }
+  return key;
 }
 
 std::string sceneName(const Scene& scene) { return std::filesystem::path(scene.file).stem().string(); }
@@ -94,7 +99,7 @@ std::string sceneName(const Scene& scene) { return std::filesystem::path(scene.f
 json recordJson(const Scene& scene, const RunResult& run, double seconds, int repeat, const std::optional<SweepPlace>& place) {
   const std::string name = sceneName(scene);
   json j;
-  j["key"] = runKey(name, run.method.text, run.settings.dt, seconds);
+  j["key"] = runKey(scene, run.method.text, run.settings.dt, seconds);
   j["scene"] = name;
   j["scene_file"] = scene.file;
   j["method"] = run.method.text;
@@ -127,8 +132,7 @@ json recordJson(const Scene& scene, const RunResult& run, double seconds, int re
   const std::string error = errorMetric(scene);
   j["error"] = {{"metric", error}, {"label", metricLabel(error)}, {"unit", metricUnit(error)},
                 {"value", run.refused ? json(nullptr) : optional(metricValue(run.metrics, error))}};
-  if (scene.criteria) {
-    const Verdict v = judge(scene, run);
+  if (const Verdict v = judge(scene, run); v.result != Verdict::Result::NoCriteria) {
     json checks = json::array();
     for (const Check& c : v.checks) checks.push_back({{"check", c.text}, {"ok", c.ok}});
     j["verdict"] = {{"result", resultName(v.result)}, {"figure", v.figure}, {"checks", checks}};

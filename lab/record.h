@@ -25,9 +25,10 @@ struct SweepPlace {
   long long index = 0, runs = 0;
 };
 
-// What identifies a run: the scene, the method, the time step and the simulated time. A sweep
-// skips runs whose key is already in its output.
-std::string runKey(const std::string& scene, const std::string& method, double dt, double seconds);
+// What identifies a run: the scene, the method, the time step, the simulated time, and the
+// reference it is measured against when the scene states one. A sweep skips runs whose key is
+// already in its output.
+std::string runKey(const Scene& scene, const std::string& method, double dt, double seconds);
 
 // The scene's name in records: the file's stem ("chain", "tall_stack_30").
 std::string sceneName(const Scene& scene);

@@ -22,13 +22,7 @@ std::string fixed(double x, int digits) {
 
 double ellipticK(double k) {
   if (!(k >= 0 && k < 1)) throw std::invalid_argument("ellipticK: the modulus must be in [0, 1), got " + numberText(k));
-  double a = 1, b = std::sqrt(1 - k * k);
-  for (int i = 0; i < 64 && std::abs(a - b) > 1e-16 * a; ++i) {
-    const double m = 0.5 * (a + b);
-    b = std::sqrt(a * b);
-    a = m;
-  }
-  return kPi / (2 * a);
+  return std::comp_ellint_1(k);  // C++17's special functions: K(k), k the modulus
 }
 
 double jacobiSn(double u, double k) {

@@ -14,8 +14,7 @@
 
 namespace substep::lab {
 
-// The complete elliptic integral of the first kind K(k), modulus k in [0, 1) (by the
-// arithmetic-geometric mean).
+// The complete elliptic integral of the first kind K(k), modulus k in [0, 1) (std::comp_ellint_1).
 double ellipticK(double k);
 // Jacobi's elliptic sine sn(u, k) (descending Landen transformation).
 double jacobiSn(double u, double k);

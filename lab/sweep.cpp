@@ -148,7 +148,7 @@ SweepPlan planSweep(const SweepSpec& spec, std::vector<Scene> scenes) {
         } catch (const std::invalid_argument& e) {
           throw std::invalid_argument(sceneName(scene) + ", " + m.text + ": " + e.what());
         }
-        r.key = runKey(sceneName(scene), m.text, settings.dt, seconds);
+        r.key = runKey(scene, m.text, settings.dt, seconds);
         if (!seen.insert(r.key).second) continue;  // the same run named twice
         keys += r.key + "\n";
         plan.runs.push_back(r);

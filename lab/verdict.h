@@ -24,6 +24,9 @@ struct Verdict {
 };
 const char* resultName(Verdict::Result r);  // "pass", "fail", "refused", "none"
 
+// Refused when the method cannot run the scene; no verdict (NoCriteria) when the scene states no
+// check (no criteria, or criteria without pass bounds); else pass when the run stayed finite,
+// did not diverge, and met every check.
 Verdict judge(const Scene& scene, const RunResult& run);
 
 }  // namespace substep::lab

@@ -253,7 +253,7 @@ TEST(Runner, RefusedAndDivergedRunsAreResults) {
   // The explicit gyroscopic term gains energy every step: at a large omega h the spin explodes,
   // and the run stops where the failure watch says it diverged.
   const Scene spin = sceneFrom(R"({"gravity": [0, 0, 0], "bodies": [{"name": "b", "mass": 1,
-      "shape": {"type": "box", "half_extents": [0.05, 0.2, 0.4]}, "angular_velocity": [1, 60, 0]}], "criteria": {}})");
+      "shape": {"type": "box", "half_extents": [0.05, 0.2, 0.4]}, "angular_velocity": [1, 60, 0]}], "criteria": {"pass": {"speed": 1000}}})");
   setup.seconds = 20;
   const RunResult d = runMethod(spin, method("a2:gyro=explicit"), setup);
   EXPECT_TRUE(d.diverged);
@@ -261,6 +261,10 @@ TEST(Runner, RefusedAndDivergedRunsAreResults) {
   EXPECT_NE(d.stopped.find("diverged at t ="), std::string::npos) << d.stopped;
   EXPECT_EQ(judge(spin, d).result, Verdict::Result::Fail);
   EXPECT_NE(judge(spin, d).figure.find("diverged at"), std::string::npos);
+  // A scene that states no check gives no verdict, whatever became of the run.
+  Scene bare = spin;
+  bare.criteria->pass.clear();
+  EXPECT_EQ(judge(bare, d).result, Verdict::Result::NoCriteria);
   // Settings that do not resolve are an error before any run.
   EXPECT_THROW(runMethod(shapes, method("a2:preset=4-medium"), RunSetup{}), std::invalid_argument);
 }
@@ -398,9 +402,11 @@ TEST(Sweeps, SpecPlanShardsAndMerge) {
   const SweepPlan plan = planSweep(spec, scenes);
   // 2 scenes x (2 a2 methods x 2 steps + a1 at its own h once) = 10.
   ASSERT_EQ(plan.runs.size(), 10u);
-  EXPECT_EQ(plan.runs[0].key, "chain | a2:m=4 | h=1/60 | 1.5 s");
-  EXPECT_EQ(plan.runs[1].key, "chain | a2:m=4 | h=1/100 | 1.5 s");
-  EXPECT_EQ(plan.runs[4].key, "chain | a1:h=1/240 | h=1/240 | 1.5 s");
+  // The chain states a converged reference: its keys say which.
+  EXPECT_EQ(plan.runs[0].key, "chain | a2:m=4 | h=1/60 | 1.5 s | against converged a3:n=4:m=8:h=1/240");
+  EXPECT_EQ(plan.runs[1].key, "chain | a2:m=4 | h=1/100 | 1.5 s | against converged a3:n=4:m=8:h=1/240");
+  EXPECT_EQ(plan.runs[4].key, "chain | a1:h=1/240 | h=1/240 | 1.5 s | against converged a3:n=4:m=8:h=1/240");
+  EXPECT_EQ(plan.runs[5].key, "stack | a2:m=4 | h=1/60 | 1.5 s");
   EXPECT_EQ(planSweep(spec, scenes).id, plan.id);
   SweepSpec other = spec;
   other.repeat = 5;  // repeats do not change what runs
