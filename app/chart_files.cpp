@@ -78,7 +78,7 @@ std::vector<std::string> writeCharts(const std::vector<nlohmann::json>& rows, co
     std::string kept;
     for (const char* term : {"png", "svg"}) {
       const std::string file = c.name + "." + term;
-      kept += lab::chartScript(c, term, file, "data/" + c.name + ".dat", options) + "\n";
+      kept += lab::chartScript(c, term, file, "data/" + c.name + ".dat", options) + "\nunset output\nreset\n";
       const std::string final = (dir / file).string();
       run += lab::chartScript(c, term, final + tag, dat, options) + "\nunset output\nreset\n";
       outputs.emplace_back(final + tag, final);

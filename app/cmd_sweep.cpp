@@ -164,8 +164,12 @@ int runSweep(const SweepOptions& o) {
     return n;
   }();
   if (!o.quiet) {
-    std::cout << "sweep     " << plan.runs.size() << " runs (" << plan.scenes.size() << " scenes x methods x time steps), plan "
-              << plan.id;
+    size_t methods = 0;
+    for (const std::string& m : spec.methods) methods += lab::parseMethods(m).size();
+    const size_t steps = std::max<size_t>(1, spec.dts.size());
+    auto count = [](size_t n, const char* what) { return std::to_string(n) + " " + what + (n == 1 ? "" : "s"); };
+    std::cout << "sweep     " << count(plan.runs.size(), "run") << " (" << count(plan.scenes.size(), "scene") << " x "
+              << count(methods, "method") << " x " << count(steps, "time step") << "), plan " << plan.id;
     if (shard.count > 1) std::cout << "; shard " << shard.index << "/" << shard.count << ": " << mine << " runs";
     std::cout << "; " << (mine - todo.size()) << " already in " << o.output << ", " << todo.size() << " to run\n";
   }
@@ -196,14 +200,15 @@ int runSweep(const SweepOptions& o) {
                                      lab::SweepPlace{plan.id, static_cast<long long>(k), static_cast<long long>(plan.runs.size())});
     writer.write(row);
     ++n;
-    progress.update(n);
     if (!o.quiet) {
+      progress.clear();
       char cost[64];
       std::snprintf(cost, sizeof cost, "%.4g ms/step", result.cost.msPerStep);
       std::cout << "[" << n << "/" << todo.size() << "] " << lab::sceneName(scene) << "  " << run.method.text << "  h="
                 << lab::stepText(result.settings.dt) << ": " << (result.refused ? "-" : cost) << ", " << shortFigure(row)
-                << "\n";
+                << "\n" << std::flush;
     }
+    progress.update(n);
   }
   progress.finish();
   if (!o.quiet) std::cout << "wrote     " << o.output << " (" << n << " new rows)\n";
@@ -268,6 +273,9 @@ void addSweepCommand(CLI::App& app, std::function<int()>& action) {
 
   auto merge = std::make_shared<MergeOptions>();
   CLI::App* m = cmd->add_subcommand("merge", "Merge sweep outputs (shards) into one file, checking for gaps and duplicates");
+  m->footer("\nRows are told apart by their key (scene, method, h, seconds, reference); a run found twice is kept once.\n"
+            "Each row names its sweep's plan and its index there: a plan with runs missing is named and nothing is\n"
+            "written (exit status 1) unless --allow-gaps. See docs/lab.md.");
   m->add_option("inputs", merge->inputs, "The JSONL files to merge")->required();
   m->add_option("-o,--output", merge->output, "The merged JSONL file (written atomically)")->required();
   m->add_flag("--allow-gaps", merge->allowGaps, "Write the merged file even when runs of a plan are missing");

@@ -291,6 +291,13 @@ void Progress::update(long long done) {
   std::fflush(stderr);
 }
 
+void Progress::clear() {
+  if (!shown_) return;
+  std::fprintf(stderr, "\r%*s\r", 80, "");
+  std::fflush(stderr);
+  lastDraw_ = -1;
+}
+
 void Progress::finish() {
   if (!shown_) return;
   std::fprintf(stderr, "\r%s done: %lld in %.1f s%40s\n", label_.c_str(), total_, nowSeconds() - start_, "");

@@ -111,6 +111,8 @@ class Progress {
  public:
   Progress(std::string label, long long total, bool show = true);
   void update(long long done);
+  // Takes the bar off the line, so that a message can be printed there; the next update redraws it.
+  void clear();
   void finish();
 
  private:

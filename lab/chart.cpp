@@ -58,15 +58,16 @@ std::string metricOf(const json& row, const ChartOptions& o) {
   return o.error.empty() ? row["error"]["metric"].get<std::string>() : o.error;
 }
 
-// The method as a point's label: its settings without the family ("n=4 m=1"), with h when the
-// chart mixes time steps.
-std::string labelOf(const json& row, bool withStep) {
+// The method as a point's label: its settings without the family ("n=4 m=1"), with h when it is
+// not the chart's common time step and the method does not name it.
+std::string labelOf(const json& row, double commonStep) {
   std::string text = row["method"].get<std::string>();
   const size_t colon = text.find(':');
   std::string label = colon == std::string::npos ? "" : text.substr(colon + 1);
   std::replace(label.begin(), label.end(), ':', ' ');
   if (label.rfind("preset=", 0) == 0) label = label.substr(7);  // "4-medium"
-  if (withStep && text.find("h=") == std::string::npos) label += (label.empty() ? "" : " ") + std::string("h=") + row["settings"]["h"].get<std::string>();
+  if (row["settings"]["dt"].get<double>() != commonStep && text.find("h=") == std::string::npos)
+    label += (label.empty() ? "" : " ") + std::string("h=") + row["settings"]["h"].get<std::string>();
   return label;
 }
 
@@ -98,13 +99,24 @@ double logFloor(const std::vector<Point>& pts) {
   return std::isfinite(lo) ? lo / 10 : 1e-12;
 }
 
-Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::string& metric, bool mixedSteps) {
+// Said on a chart that draws zero errors at logFloor().
+std::string zeroNote(double floor) {
+  char at[32];
+  std::snprintf(at, sizeof at, "%.3g", floor);
+  return "set label 10 'a zero error is drawn at " + std::string(at) + " (a tenth of the least other)' at graph 0.01, "
+         "graph 0.03 font ',8'\n";
+}
+
+Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::string& metric, const std::string& step, bool mixedSteps) {
   Chart c;
   c.name = scene + "-pareto";
   const double floor = logFloor(pts);
   double top = 0;
   for (Point& p : pts) {
-    if (!(p.error > 0)) p.error = floor;
+    if (p.error == 0) {
+      p.error = floor;
+      p.label += p.label.empty() ? "0" : " (0)";
+    }
     if (std::isfinite(p.error)) top = std::max(top, p.error);
   }
   top = top > 0 ? top * 4 : 1;
@@ -154,14 +166,15 @@ Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::s
   if (!front.empty()) {
     data << "\n\n";
     plot << (index ? ", \\\n     " : "plot ") << "'@DATA@' index " << index
-         << " using 1:2 with steps lw 2 dt 2 lc rgb '#333333' title 'Pareto front'";
+         << " using 1:2 with steps lw 2 dt 2 lc rgb '#333333' title 'Pareto front', \\\n     '' index " << index
+         << " using 1:2 with points pt 6 ps 2.2 lw 1.5 lc rgb '#333333' notitle";
     ++index;
   }
-  c.title = scene + ": " + metricLabel(metric) + " against cost" + (mixedSteps ? "" : " (h = " + (pts.empty() ? std::string("?") : stepText(pts[0].dt)) + ")");
+  c.title = scene + ": " + metricLabel(metric) + " against cost (h = " + step + (mixedSteps ? " unless labelled" : "") + ")";
   c.data = data.str();
   std::string x = "cost per simulated second [ms] (median of the repeats)";
   c.script = header(c.title, x, yLabel(metric)) + "set logscale xy\n" +
-             (zero ? "set label 10 'a zero error is drawn at the bottom' at graph 0.01, graph 0.03 font ',8'\n" : "") +
+             (zero ? zeroNote(floor) : "") +
              (plot.str().empty() ? "set label 1 'no finite runs' at graph 0.4, graph 0.5\nplot 2 notitle\n" : plot.str() + "\n");
   c.notes.push_back("Pareto front: " + (frontText.empty() ? std::string("none") : frontText));
   return c;
@@ -192,10 +205,14 @@ bool substepsChart(const std::string& scene, const std::vector<Point>& pts, cons
   std::ostringstream data, plot;
   int index = 0;
   const double floor = logFloor(pts);
+  bool zero = false;
   for (const auto& [fam, g] : best) {
     if (g.size() < 2) continue;
     std::vector<std::pair<int, double>> kv;
-    for (const Point* p : g) kv.emplace_back(fam == "a2" ? p->m : p->n, p->error > 0 ? p->error : floor);
+    for (const Point* p : g) {
+      kv.emplace_back(fam == "a2" ? p->m : p->n, p->error > 0 ? p->error : floor);
+      zero = zero || !(p->error > 0);
+    }
     std::sort(kv.begin(), kv.end());
     for (const auto& [k, e] : kv) data << k << ' ' << num(e) << '\n';
     data << "\n\n";
@@ -208,7 +225,8 @@ bool substepsChart(const std::string& scene, const std::vector<Point>& pts, cons
     c.notes.push_back(note);
   }
   c.data = data.str();
-  c.script = header(c.title, "solver sweeps per step n", yLabel(metric)) + "set logscale xy\nset logscale x 2\n" + plot.str() + "\n";
+  c.script = header(c.title, "solver sweeps per step n", yLabel(metric)) + "set logscale xy\nset logscale x 2\n" +
+             (zero ? zeroNote(floor) : "") + plot.str() + "\n";
   return true;
 }
 
@@ -220,23 +238,29 @@ bool havokChart(const std::string& scene, const std::vector<Point>& pts, const s
     if ((p.family == "a3" || p.family == "a4" || p.family == "a5") && !p.diverged && std::isfinite(p.error))
       groups[p.family][signature(*p.row, {"substeps", "algorithm", "block_solve"})].push_back(&p);
   int families = 0;
+  bool line = false;  // against n: some family over two n or more
   for (auto& [fam, gs] : groups) {
     for (auto& [sig, g] : gs)
       if (g.size() > best[fam].size()) best[fam] = g;
     families += !best[fam].empty();
+    std::set<int> ns;
+    for (const Point* p : best[fam]) ns.insert(p->n);
+    line = line || ns.size() >= 2;
   }
-  if (families < 2) return false;
+  if (families < 2 || !line) return false;
   c.name = scene + "-havok";
   c.title = scene + ": A3 (conceptual), A4 (approximative) and A5 (actual) against n";
   std::ostringstream data, errPlot, costPlot;
   int index = 0;
   const double floor = logFloor(pts);
+  bool zero = false;
   for (const auto& [fam, g] : best) {
     if (g.empty()) continue;
     std::vector<const Point*> s = g;
     std::sort(s.begin(), s.end(), [](const Point* a, const Point* b) { return a->n < b->n; });
     std::string note = fam + ":";
     for (const Point* p : s) {
+      zero = zero || !(p->error > 0);
       const double msPerStep = p->cost * p->dt;
       data << p->n << ' ' << num(p->error > 0 ? p->error : floor) << ' ' << num(msPerStep) << '\n';
       char buf[64];
@@ -254,7 +278,8 @@ bool havokChart(const std::string& scene, const std::vector<Point>& pts, const s
   c.script = "@TERMINAL@\nset output '@OUT@'\nset termoption noenhanced\nset multiplot layout 1,2 title " + gpString(c.title) +
              "\nset grid lc rgb '#dddddd'\nset key top right box opaque\nset logscale x 2\nset xlabel 'sub-steps n'\n"
              "set format x '%g'\nset format y '%g'\n"
-             "set logscale y\nset title 'error'\nset ylabel " + gpString(yLabel(metric)) + "\n" + errPlot.str() +
+             "set logscale y\nset title 'error'\nset ylabel " + gpString(yLabel(metric)) + "\n" + (zero ? zeroNote(floor) : "") +
+             errPlot.str() + "\nunset label 10" +
              "\nset title 'cost'\nset ylabel 'cost per step [ms]'\nunset logscale y\nset yrange [0:*]\n" + costPlot.str() +
              "\nunset multiplot\n";
   return true;
@@ -352,11 +377,15 @@ std::vector<Chart> makeCharts(const std::vector<json>& rows, const ChartOptions&
   std::vector<Chart> charts;
   for (const std::string& scene : order) {
     std::vector<Point>& pts = byScene[scene];
-    std::set<double> steps;
-    for (const Point& p : pts) steps.insert(p.dt);
-    for (Point& p : pts) p.label = labelOf(*p.row, steps.size() > 1);
+    // The time step most runs have: the title states it, labels the others.
+    std::map<double, int> steps;
+    for (const Point& p : pts) ++steps[p.dt];
+    const double common = std::max_element(steps.begin(), steps.end(), [](const auto& a, const auto& b) {
+                            return a.second < b.second;
+                          })->first;
+    for (Point& p : pts) p.label = labelOf(*p.row, common);
     const std::string metric = metricOf(*pts.front().row, options);
-    charts.push_back(paretoChart(scene, pts, metric, steps.size() > 1));
+    charts.push_back(paretoChart(scene, pts, metric, stepText(common), steps.size() > 1));
     Chart c;
     if (substepsChart(scene, pts, metric, c)) charts.push_back(c);
     c = Chart{};

@@ -371,6 +371,28 @@ TEST(Charts, EveryChartFromTheRecordsItNeeds) {
   EXPECT_EQ(png.find('@'), std::string::npos);
   // Only what the rows hold: a lone method gives the Pareto chart alone.
   EXPECT_EQ(makeCharts({rows[0]}, ChartOptions{}).size(), 1u);
+  // Labels name h only where it is not the chart's common step, and the title says so.
+  EXPECT_NE(charts[0].title.find("(h = 1/60 unless labelled)"), std::string::npos) << charts[0].title;
+  EXPECT_NE(charts[0].data.find("\"h=1/30\""), std::string::npos);
+  EXPECT_EQ(charts[0].data.find("m=4 h=1/60"), std::string::npos) << charts[0].data;
+}
+
+// A3/A4/A5 at one n each (the atlas's presets) is no chart against n; zero errors are drawn at a
+// floor on log axes, labelled 0 and said so; the front's points are ringed.
+TEST(Charts, OneNIsNoLineAndZeroIsLabelled) {
+  std::vector<nlohmann::json> rows;
+  for (const char* f : {"a3", "a4", "a5"}) rows.push_back(fakeRow("z", std::string(f) + ":n=4", f, 4, 1, 1.0 / 60, 0, 0.01));
+  rows.push_back(fakeRow("z", "a2:m=4", "a2", 1, 4, 1.0 / 60, 0.2, 0.004));
+  const std::vector<Chart> charts = makeCharts(rows, ChartOptions{});
+  ASSERT_EQ(charts.size(), 1u) << charts.back().name;
+  EXPECT_EQ(charts[0].name, "z-pareto");
+  EXPECT_NE(charts[0].data.find("0.02 \"n=4 (0)\""), std::string::npos) << charts[0].data;
+  EXPECT_NE(charts[0].script.find("a zero error is drawn at 0.02 (a tenth of the least other)"), std::string::npos)
+      << charts[0].script;
+  EXPECT_NE(charts[0].script.find("with points pt 6"), std::string::npos);  // the ring on the front
+  // A second n for one family makes the chart.
+  rows.push_back(fakeRow("z", "a5:n=8", "a5", 8, 1, 1.0 / 60, 0, 0.02));
+  EXPECT_EQ(makeCharts(rows, ChartOptions{}).size(), 2u);
 }
 
 // Sweep specs, plans, shards, truncated outputs and merging.

@@ -46,6 +46,52 @@ fs::path smallSpec(const fs::path& dir) {
   return spec;
 }
 
+// A chart as gnuplot drew it: a PNG of the size asked for with more than a few colours (not
+// blank), and its SVG beside it naming every series it should.
+void expectChart(const fs::path& png, const std::vector<std::string>& series) {
+  SCOPED_TRACE(png.string());
+  ASSERT_TRUE(fs::exists(png));
+  const substep::render::Image img = substep::render::readPng(png.string());
+  EXPECT_EQ(img.width, 960);
+  EXPECT_EQ(img.height, 600);
+  std::set<uint32_t> colours;
+  for (size_t i = 0; i + 3 < img.rgba.size(); i += 4 * 97)
+    colours.insert(uint32_t(img.rgba[i]) << 16 | uint32_t(img.rgba[i + 1]) << 8 | img.rgba[i + 2]);
+  EXPECT_GT(colours.size(), 3u) << "the chart is blank";
+  fs::path svgPath = png;
+  svgPath.replace_extension(".svg");
+  std::ifstream svg(svgPath);
+  std::stringstream text;
+  text << svg.rdbuf();
+  EXPECT_NE(text.str().find("<svg"), std::string::npos);
+  for (const std::string& s : series) EXPECT_NE(text.str().find(">" + s + "<"), std::string::npos) << s;
+}
+
+// What a terminal shows of an output with carriage returns: each line as it is left after the
+// returns overwrite it.
+std::vector<std::string> screenLines(const std::string& out) {
+  std::vector<std::string> lines;
+  std::string line;
+  size_t col = 0;
+  for (char c : out) {
+    if (c == '\n') {
+      lines.push_back(line);
+      line.clear();
+      col = 0;
+    } else if (c == '\r') {
+      col = 0;
+    } else {
+      if (col < line.size())
+        line[col] = c;
+      else
+        line += c;
+      ++col;
+    }
+  }
+  if (!line.empty()) lines.push_back(line);
+  return lines;
+}
+
 }  // namespace
 
 // Acceptance: `substep sweep --scenes chain --methods a2:m=4,a5:n=4 --repeat 1 -o s.jsonl` writes
@@ -55,6 +101,7 @@ TEST(Sweep, TwoRowsAndAChartDrawnFromThem) {
   const fs::path d = folder();
   const Outcome s = run("sweep --scenes chain --methods a2:m=4,a5:n=4 --repeat 1 -o " + (d / "s.jsonl").string());
   ASSERT_EQ(s.status, 0) << s.output;
+  EXPECT_NE(s.output.find("2 runs (1 scene x 2 methods x 1 time step)"), std::string::npos) << s.output;
   const std::vector<json> r = rows(d / "s.jsonl");
   ASSERT_EQ(r.size(), 2u);
   EXPECT_EQ(r[0]["method"], "a2:m=4");
@@ -85,6 +132,54 @@ TEST(Sweep, TwoRowsAndAChartDrawnFromThem) {
   EXPECT_TRUE(fs::exists(d / "charts" / "data" / "chain-pareto.dat"));
   for (const auto& e : fs::directory_iterator(d / "charts"))
     EXPECT_EQ(e.path().string().find(".part"), std::string::npos) << "left behind: " << e.path();
+}
+
+// Every kind of chart from one small sweep: error against cost with the front, sub-steps against
+// iterations, A3/A4/A5 against n, and the convergence order; each a PNG and an SVG that name
+// every series, the gnuplot data and script kept beside them.
+TEST(Chart, EveryKindDrawnFromASweep) {
+  const fs::path d = folder();
+  const Outcome s = run("sweep --scenes pendulum_chain --methods 'a1:h=1/60|1/120,a2:m=1|2|4,a3:n=1|2|4:m=1,a5:n=1|2|4:m=1,bullet' "
+                        "--seconds 0.5 -q -o " + (d / "s.jsonl").string());
+  ASSERT_EQ(s.status, 0) << s.output;
+  ASSERT_EQ(rows(d / "s.jsonl").size(), 12u);
+  const Outcome c = run("chart " + (d / "s.jsonl").string() + " -o " + (d / "charts").string());
+  ASSERT_EQ(c.status, 0) << c.output;
+  EXPECT_NE(c.output.find("wrote     8 files"), std::string::npos) << c.output;
+  expectChart(d / "charts" / "pendulum_chain-pareto.png", {"a1", "a2", "a3", "a5", "bullet", "Pareto front"});
+  expectChart(d / "charts" / "pendulum_chain-substeps.png",
+              {"a2: 1 step of n iterations", "a3: n sub-steps of 1 iteration", "a5: n sub-steps of 1 iteration"});
+  expectChart(d / "charts" / "pendulum_chain-havok.png", {"a3", "a5"});
+  expectChart(d / "charts" / "pendulum_chain-convergence.png", {});
+  EXPECT_NE(c.output.find("a1 (slope "), std::string::npos) << c.output;  // the fitted order, printed
+  for (const char* kind : {"pareto", "substeps", "havok", "convergence"}) {
+    EXPECT_GT(fs::file_size(d / "charts" / "data" / ("pendulum_chain-" + std::string(kind) + ".dat")), 0u) << kind;
+    EXPECT_GT(fs::file_size(d / "charts" / "data" / ("pendulum_chain-" + std::string(kind) + ".gp")), 0u) << kind;
+  }
+  // The kept script redraws its chart from the folder.
+  fs::remove(d / "charts" / "pendulum_chain-havok.png");
+  const Outcome again = substep_test::runShell("cd " + (d / "charts").string() + " && gnuplot data/pendulum_chain-havok.gp");
+  EXPECT_EQ(again.status, 0) << again.output;
+  expectChart(d / "charts" / "pendulum_chain-havok.png", {"a3", "a5"});
+}
+
+// On a terminal the progress bar (runs done, time left) shares the screen with a line per run:
+// each run's line starts its own line, the bar never left in front of it.
+TEST(Sweep, ProgressBarOnATerminal) {
+  const fs::path d = folder();
+  const Outcome s = substep_test::runSubstepOnTerminal("sweep --scenes pyramid --methods a2:m=2,a2:m=4,a2:m=6,a2:m=8,a5:n=1,a5:n=2 --seconds 2 -o " +
+                                                       (d / "s.jsonl").string());
+  ASSERT_EQ(s.status, 0) << s.output;
+  EXPECT_NE(s.output.find("s left"), std::string::npos) << s.output;  // the bar was drawn
+  EXPECT_NE(s.output.find("sweep done: 6 in"), std::string::npos) << s.output;
+  int runLines = 0;
+  for (const std::string& line : screenLines(s.output)) {
+    const size_t at = line.find("] pyramid  ");
+    if (at == std::string::npos) continue;
+    ++runLines;
+    EXPECT_EQ(line[0], '[') << "a run's line behind the bar: " << line;
+  }
+  EXPECT_EQ(runLines, 6);
 }
 
 // A stopped sweep resumes: the runs in its output are skipped, and a last line cut short (a
@@ -222,10 +317,23 @@ TEST(Sweep, BadInputIsNamed) {
     EXPECT_EQ(r.status, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.says), std::string::npos) << c.args << "\n" << r.output;
   }
-  std::ofstream(d / "bad_spec.json") << R"({"scenes": ["chain"], "methods": ["a2"], "repeats": 3})";
-  const Outcome r = run("sweep " + (d / "bad_spec.json").string() + out);
-  EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.output.find("bad_spec.json: unknown key \"repeats\""), std::string::npos) << r.output;
+  // A bad spec file: the file, the field and what was expected.
+  for (const Case& c : std::vector<Case>{
+           {R"({"scenes": ["chain"], "methods": ["a2"], "repeats": 3})", "spec.json: unknown key \"repeats\""},
+           {R"({"scenes": ["chain"], "methods": ["a2:m=0"]})", "spec.json: methods[0]: \"a2:m=0\": m: expected an integer in [1, 100000], got \"0\""},
+           {R"({"scenes": ["chain"], "methods": ["a2"], "repeat": "three"})", "spec.json: repeat: expected an integer in [1, 1000]"},
+           {R"({"scenes": ["chain"], "methods": ["a2"], "dt": ["1/0"]})", "spec.json: dt[0]: expected a number in [1e-6, 1]"},
+           {R"({"scenes": ["chain", 3], "methods": ["a2"]})", "spec.json: scenes[1]: expected a string"},
+           {R"({"scenes": ["chain"], "methods": ["a2"], "reference": {"type": "pendulum"}})",
+            "chain.json (with the sweep's reference): criteria.reference: missing required field \"body\""},
+           {R"({"scenes": ["chain"], "methods": ["a2"], )", "spec.json: not JSON"},
+       }) {
+    std::ofstream(d / "spec.json") << c.args;
+    const Outcome r = run("sweep " + (d / "spec.json").string() + out);
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.says), std::string::npos) << c.args << "\n" << r.output;
+  }
+  EXPECT_FALSE(fs::exists(d / "x.jsonl"));  // nothing written
 }
 
 // Ctrl-C: exit status 130; the rows written before it stay whole, and the next sweep resumes.
