@@ -133,6 +133,7 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       long long maxIterations = 0, sumIterations = 0;
       long long directMethods[4] = {0, 0, 0, 0};  // A1: steps answered by Dantzig, Lemke, Gauss-Seidel
       int maxContacts = 0;
+      long long sumPairs = 0, sumCached = 0;  // broadphase pairs, and those whose manifold was kept
       std::string stopReason;
       for (long long k = 1; k <= steps; ++k) {
         if (InterruptGuard::interrupted()) {
@@ -148,6 +149,8 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
         sumIterations += r.solver.iterations;
         if (r.solver.directMethod >= 1 && r.solver.directMethod <= 3) ++directMethods[r.solver.directMethod];
         maxContacts = std::max(maxContacts, r.contactPoints);
+        sumPairs += r.pairs;
+        sumCached += r.cachedPairs;
         if (r.overloaded && k == 1)
           throw UsageError(scene.file + ": the initial configuration: " + r.problem +
                            "; move the bodies apart (a scene starts with bodies touching, not inside each other)");
@@ -190,6 +193,8 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
                                   {"s3_velocities", T.s3 * per}, {"s4_coordinates", T.s4 * per},
                                   {"total", T.total() * per}};
         j["violation"] = {{"max_penetration", worstPen}, {"max_joint_error", worstJoint}};
+        j["pairs_per_step"] = static_cast<double>(sumPairs) / std::max<long long>(done, 1);
+        j["pairs_kept"] = sumPairs ? static_cast<double>(sumCached) / sumPairs : 0.0;
         j["solver"] = {{"max_iterations", maxIterations},
                        {"mean_iterations", static_cast<double>(sumIterations) / std::max<long long>(done, 1)},
                        {"max_residual", maxResidual}, {"max_contact_points", maxContacts}};
@@ -215,7 +220,9 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
         std::cout << "stepped   " << done << " steps, " << world.state().time << " s simulated in " << wall << " s wall\n"
                   << "per step  " << T.total() * per << " ms: s1 geometry " << T.s1 * per << ", s2 formulation "
                   << T.s2 * per << ", s3 velocities " << T.s3 * per << ", s4 coordinates " << T.s4 * per << "\n"
-                  << "contacts  up to " << maxContacts << " points; iterations up to " << maxIterations << "\n"
+                  << "contacts  up to " << maxContacts << " points; iterations up to " << maxIterations << "; pairs "
+                  << sumPairs / std::max<long long>(done, 1) << " a step, "
+                  << (sumPairs ? 100.0 * sumCached / sumPairs : 0.0) << " % kept without the narrowphase\n"
                   << std::setprecision(4) << "violation max penetration " << worstPen * 1e3 << " mm, max joint error "
                   << worstJoint * 1e3 << " mm\n"
                   << "energy    kinetic " << world.kineticEnergy() << " J, potential " << world.potentialEnergy() << " J\n"

@@ -65,6 +65,7 @@ struct SolverSettings {
   double jointDamping = 2;       // damping ratio ζ
   double pushOut = 3;            // largest speed a soft contact pushes penetrating bodies apart [m/s]
   int directMaxRows = 1500;      // A1: largest MLCP it forms densely (rows)
+  double directWorkBudget = 2e10;  // A1: floating-point operations per step (mlcp_direct.h), about 3 s here
 };
 
 // Settings as a scene file or a command line gives them: every field optional.

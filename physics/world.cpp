@@ -63,15 +63,17 @@ void World::setSettings(const SolverSettings& settings) {
 bool World::geometry() {
   // How far each body can get in this step, plus half the contact margin: a pair is examined
   // when its bodies can meet, and speculative points cover the gap they can close.
+  // The step's fall under gravity, h² g, is added along gravity only (Broadphase): a resting
+  // box's neighbours a centimetre away are out of reach.
   const double h = settings_.dt;
-  const double gh = model_.gravity.norm() * h;
+  const Vec3 fall = settings_.speculative ? Vec3(h * h * model_.gravity) : Vec3::Zero();
   for (size_t i = 0; i < state_.bodies.size(); ++i) {
     const Body& b = model_.bodies[i];
     const BodyState& s = state_.bodies[i];
     reach_[i] = 0.5 * kContactMargin;
-    if (!b.isStatic && settings_.speculative) reach_[i] += h * (s.v.norm() + gh + s.w.norm() * b.shape.boundingRadius());
+    if (!b.isStatic && settings_.speculative) reach_[i] += h * (s.v.norm() + s.w.norm() * b.shape.boundingRadius());
   }
-  broadphase_.update(state_, reach_);
+  broadphase_.update(state_, reach_, fall);
   const size_t cap = std::max<size_t>(limits::kMinPairCap, limits::kMaxPairsPerBody * model_.bodies.size());
   if (!broadphase_.findPairs(pairs_, cap)) {
     report_.finite = false;
@@ -100,7 +102,7 @@ bool World::geometry() {
       continue;
     }
     narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB,
-                         reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)], patch);
+                         reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)] + fall.norm(), patch);
     if (patch.count == 0) continue;
     // How far from its origin a point of B can be: B's size, or for a surface the distance of A's
     // far side from B's origin.

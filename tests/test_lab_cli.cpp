@@ -281,13 +281,21 @@ TEST(Sweep, SlurmArrayScriptBody) {
 // A run that diverges is a row that says so, not an abort; a method that cannot run a scene too.
 TEST(Sweep, DivergedAndRefusedRunsAreRows) {
   const fs::path d = folder();
-  const Outcome s = run("sweep --scenes atlas/mass_ratio_chain_1000,shapes --methods a1,bullet -o " + (d / "s.jsonl").string());
+  // tests/data/diverging.json: a pendulum whose joint error grows ninefold a sub-step under a3 at
+  // tau = 10 (its own solver block, which a sweep's methods do not take: the method names it).
+  const Outcome s = run("sweep --scenes tests/data/diverging.json,shapes --methods a3:tau=10,bullet -o " + (d / "s.jsonl").string());
   ASSERT_EQ(s.status, 0) << s.output;
   const std::vector<json> r = rows(d / "s.jsonl");
   ASSERT_EQ(r.size(), 4u);
-  EXPECT_TRUE(r[0]["diverged"].get<bool>());  // a1 on the 1000:1 chain
+  EXPECT_EQ(r[0]["method"], "a3:tau=10");
+  EXPECT_TRUE(r[0]["diverged"].get<bool>());
+  ASSERT_TRUE(r[0]["stopped"].is_string()) << r[0].dump();
   EXPECT_NE(r[0]["stopped"].get<std::string>().find("diverged at t ="), std::string::npos);
-  EXPECT_TRUE(r[3]["refused"].get<bool>());  // Bullet has no meshes
+  EXPECT_FALSE(r[0].contains("verdict"));  // the fixture states no criteria: no verdict
+  EXPECT_LT(r[0]["steps_done"].get<long long>(), r[0]["steps"].get<long long>());
+  EXPECT_FALSE(r[1]["diverged"].get<bool>());  // Bullet on the same pendulum: the sweep went on
+  EXPECT_TRUE(r[3]["refused"].get<bool>());    // Bullet has no meshes
+  EXPECT_NE(s.output.find("DIVERGED"), std::string::npos) << s.output;
   EXPECT_NE(s.output.find("refused: no Bullet peer"), std::string::npos) << s.output;
 }
 

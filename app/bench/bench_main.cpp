@@ -76,7 +76,7 @@ struct Case {
   int substeps;            // n (A3-A5; ignored by A1/A2)
   int iterations;          // A2: iteration cap; A3-A5: micro-iterations m; Bullet: solver iterations
   bool byDefault;          // run when --algos is not given
-  bool stackSettings = false;  // κ 0.85, τ 0, warm started: what holds the pyramid (pyramid.json)
+  bool stackSettings = false;  // κ 0.85, τ 0, warm started, contact blocks: what holds the pyramid (pyramid.json)
 };
 
 // Every case the benchmark knows, in table order. Adding one, or running one by default, is an
@@ -90,7 +90,8 @@ const std::vector<Case>& allCases() {
       {"a3",     "a3 (n=4 m=1)",   Engine::Substep, Algorithm::A3, 4, 1,  true},
       {"a4",     "a4 (n=4 m=1)",   Engine::Substep, Algorithm::A4, 4, 1,  true},
       {"a5",     "a5 (n=4 m=1)",   Engine::Substep, Algorithm::A5, 4, 1,  true},
-      {"a5-stack", "a5 k.85 t0 warm", Engine::Substep, Algorithm::A5, 4, 1, true, true},
+      {"a5-stack", "a5 pyramid.json", Engine::Substep, Algorithm::A5, 4, 1, true, true},
+      {"soft",   "soft (n=4)",     Engine::Substep, Algorithm::Soft, 4, 1, true},
       {"bullet", "bullet (10 it)", Engine::Bullet,  Algorithm::A2, 1, 10, true},
   };
   return list;
@@ -110,6 +111,7 @@ SolverSettings caseSettings(const Case& c, double dt) {
     o.kappa = 0.85;
     o.tau = 0.0;
     o.warmStart = true;
+    o.contactBlocks = true;
   }
   return resolve(o);
 }

@@ -1,49 +1,67 @@
 #include "physics/collision/broadphase.h"
 
 #include <algorithm>
+#include <iterator>
 
 namespace substep {
 
-struct Broadphase::Object : fcl::CollisionObjectd {
-  using fcl::CollisionObjectd::CollisionObjectd;
-  void grow(double d) {
-    aabb.min_ -= fcl::Vector3d::Constant(d);
-    aabb.max_ += fcl::Vector3d::Constant(d);
-  }
-};
-
 namespace {
 
-struct PairCollector {
-  const Model* model;
-  const std::vector<std::pair<int, int>>* excluded;
-  std::vector<std::pair<int, int>>* pairs;
-  size_t maxPairs;
+// An FCL object whose box we set ourselves: the fat box, not the shape's tight one.
+struct FatObject : fcl::CollisionObjectd {
+  using fcl::CollisionObjectd::CollisionObjectd;
+  void setBox(const Vec3& lo, const Vec3& hi) {
+    aabb.min_ = lo;
+    aabb.max_ = hi;
+  }
 };
-
-bool admitted(const PairCollector& c, int i, int j) {
-  if (i > j) std::swap(i, j);
-  const Body& bi = c.model->bodies[static_cast<size_t>(i)];
-  const Body& bj = c.model->bodies[static_cast<size_t>(j)];
-  if ((bi.isStatic && bj.isStatic) || !mayTouch(bi, bj)) return false;
-  if (std::binary_search(c.excluded->begin(), c.excluded->end(), std::make_pair(i, j))) return false;
-  c.pairs->emplace_back(i, j);
-  return true;
-}
-
-bool collectPair(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* data) {
-  auto* c = static_cast<PairCollector*>(data);
-  const int i = static_cast<int>(reinterpret_cast<intptr_t>(o1->getUserData()));
-  const int j = static_cast<int>(reinterpret_cast<intptr_t>(o2->getUserData()));
-  admitted(*c, i, j);
-  return c->pairs->size() > c->maxPairs;  // stop early only when over the cap
-}
 
 fcl::Transform3d transformOf(const BodyState& s, const Pose& offset) {
   fcl::Transform3d t = fcl::Transform3d::Identity();
   t.linear() = (s.q * offset.q).toRotationMatrix();
   t.translation() = s.x + s.q * offset.p;
   return t;
+}
+
+// How much bigger than its reach box a body's fat box is: a tenth of a metre for bodies of a
+// metre and more (Box2D's margin), less for small ones, so that small bodies do not all meet.
+double fatMargin(const Shape& s) { return std::clamp(0.25 * s.boundingRadius(), 1e-3, 0.1); }
+
+// The world box of a placed shape. FCL's own (CollisionObject::computeAABB) is the box of the
+// bounding sphere as soon as the rotation is not exactly the identity, which a resting box's never
+// is: 1.73 times too wide for a cube, every pyramid neighbour in reach. The shape's local box
+// turned by |R| is exact for boxes and for the axis-aligned faces of everything else; a sphere
+// is its radius in every direction.
+void tightBox(const fcl::CollisionObjectd& o, const Shape& s, Vec3& lo, Vec3& hi) {
+  const fcl::Transform3d& t = o.getTransform();
+  if (s.type == ShapeType::Sphere) {
+    lo = t.translation() - Vec3::Constant(s.radius);
+    hi = t.translation() + Vec3::Constant(s.radius);
+    return;
+  }
+  const fcl::AABBd& local = o.collisionGeometry()->aabb_local;
+  const Vec3 centre = t * local.center();
+  const Vec3 half = t.linear().cwiseAbs() * (0.5 * (local.max_ - local.min_));
+  lo = centre - half;
+  hi = centre + half;
+}
+
+struct Query {
+  const std::vector<std::unique_ptr<fcl::CollisionObjectd>>* objects;
+  std::vector<std::pair<int, int>>* found;
+  size_t cap;
+  const void* self;
+  bool (*admit)(const void*, int, int);
+};
+
+bool collectCandidate(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* data) {
+  auto* q = static_cast<Query*>(data);
+  int i = static_cast<int>(reinterpret_cast<intptr_t>(o1->getUserData()));
+  int j = static_cast<int>(reinterpret_cast<intptr_t>(o2->getUserData()));
+  if (i == j) return false;
+  if (i > j) std::swap(i, j);
+  if (q->admit(q->self, i, j)) q->found->emplace_back(i, j);
+  return q->found->size() > q->cap;  // stop only when over the cap
 }
 
 }  // namespace
@@ -56,9 +74,11 @@ Broadphase::Broadphase(const Model& model) : model_(model) {
       objects_.push_back(nullptr);
       continue;
     }
-    objects_.push_back(std::make_unique<Object>(shapes_.back().geometry));
+    objects_.push_back(std::make_unique<FatObject>(shapes_.back().geometry));
     objects_.back()->setUserData(reinterpret_cast<void*>(static_cast<intptr_t>(i)));
   }
+  reachBox_.resize(model.bodies.size());
+  fat_.resize(model.bodies.size());
   for (const Joint& j : model.joints)
     if (!j.collide) excluded_.emplace_back(std::min(j.bodyA, j.bodyB), std::max(j.bodyA, j.bodyB));
   std::sort(excluded_.begin(), excluded_.end());
@@ -66,9 +86,16 @@ Broadphase::Broadphase(const Model& model) : model_(model) {
 
 Broadphase::~Broadphase() = default;
 
-void Broadphase::update(const State& state, const std::vector<double>& reach) {
-  const bool first = manager_.size() == 0;
-  if (first) {
+bool Broadphase::admitted(int i, int j) const {
+  const Body& bi = model_.bodies[static_cast<size_t>(i)];
+  const Body& bj = model_.bodies[static_cast<size_t>(j)];
+  if ((bi.isStatic && bj.isStatic) || !mayTouch(bi, bj)) return false;
+  return !std::binary_search(excluded_.begin(), excluded_.end(), std::make_pair(i, j));
+}
+
+void Broadphase::update(const State& state, const std::vector<double>& reach, const Vec3& fall) {
+  movedList_.clear();
+  if (!registered_) {
     planes_.clear();
     for (size_t i = 0; i < objects_.size(); ++i) {
       if (objects_[i]) continue;
@@ -79,37 +106,86 @@ void Broadphase::update(const State& state, const std::vector<double>& reach) {
     }
   }
   for (size_t i = 0; i < objects_.size(); ++i) {
-    if (!objects_[i] || (!first && model_.bodies[i].isStatic)) continue;
-    objects_[i]->setTransform(transformOf(state.bodies[i], shapes_[i].offset));
-    objects_[i]->computeAABB();
-    objects_[i]->grow(reach[i]);
+    if (!objects_[i] || (registered_ && model_.bodies[i].isStatic)) continue;
+    auto& o = static_cast<FatObject&>(*objects_[i]);
+    o.setTransform(transformOf(state.bodies[i], shapes_[i].offset));
+    Box& r = reachBox_[i];
+    tightBox(o, model_.bodies[i].shape, r.lo, r.hi);
+    r.lo -= Vec3::Constant(reach[i]);
+    r.hi += Vec3::Constant(reach[i]);
+    if (!model_.bodies[i].isStatic) {  // the fall, along gravity only
+      r.lo += fall.cwiseMin(Vec3::Zero());
+      r.hi += fall.cwiseMax(Vec3::Zero());
+    }
+    if (registered_ && fat_[i].contains(r)) {
+      o.setBox(fat_[i].lo, fat_[i].hi);  // unchanged in the tree
+      continue;
+    }
+    const double m = model_.bodies[i].isStatic ? 0.0 : fatMargin(model_.bodies[i].shape);
+    fat_[i] = Box{r.lo - Vec3::Constant(m), r.hi + Vec3::Constant(m)};
+    o.setBox(fat_[i].lo, fat_[i].hi);
+    movedList_.push_back(static_cast<int>(i));
   }
-  if (first) {
+  moved_ = static_cast<int>(movedList_.size());
+  if (!registered_) {
     std::vector<fcl::CollisionObjectd*> all;
     for (auto& o : objects_)
       if (o) all.push_back(o.get());
     manager_.registerObjects(all);
     manager_.setup();
-  } else {
-    manager_.update();
+    registered_ = true;
+  } else if (!movedList_.empty()) {
+    std::vector<fcl::CollisionObjectd*> moved;
+    for (const int i : movedList_) moved.push_back(objects_[static_cast<size_t>(i)].get());
+    manager_.update(moved);
   }
 }
 
 bool Broadphase::findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPairs) {
   pairs.clear();
-  PairCollector c{&model_, &excluded_, &pairs, maxPairs};
-  manager_.collide(&c, collectPair);
-  // A body meets a plane when the lowest corner of its (grown) box is below the surface.
+  // Candidates whose fat boxes came apart are dropped; the moved bodies' new neighbours added.
+  if (!movedList_.empty()) {
+    size_t keep = 0;
+    for (const auto& pr : candidates_)
+      if (fat_[static_cast<size_t>(pr.first)].overlaps(fat_[static_cast<size_t>(pr.second)])) candidates_[keep++] = pr;
+    candidates_.resize(keep);
+    found_.clear();
+    Query q{&objects_, &found_, 4 * maxPairs, this,
+            [](const void* self, int i, int j) { return static_cast<const Broadphase*>(self)->admitted(i, j); }};
+    for (const int i : movedList_) {
+      manager_.collide(objects_[static_cast<size_t>(i)].get(), &q, collectCandidate);
+      if (found_.size() > q.cap) return false;
+    }
+    std::sort(found_.begin(), found_.end());
+    found_.erase(std::unique(found_.begin(), found_.end()), found_.end());
+    std::vector<std::pair<int, int>> merged;
+    merged.reserve(candidates_.size() + found_.size());
+    std::set_union(candidates_.begin(), candidates_.end(), found_.begin(), found_.end(), std::back_inserter(merged));
+    candidates_.swap(merged);
+    movedList_.clear();
+  }
+  for (const auto& pr : candidates_)
+    if (reachBox_[static_cast<size_t>(pr.first)].overlaps(reachBox_[static_cast<size_t>(pr.second)])) {
+      pairs.push_back(pr);
+      if (pairs.size() > maxPairs) return false;
+    }
+  // A body meets a plane when the lowest corner of its reach box is below the surface.
+  bool planesAdded = false;
   for (const Plane& p : planes_) {
-    for (size_t i = 0; i < objects_.size() && pairs.size() <= maxPairs; ++i) {
+    for (size_t i = 0; i < objects_.size(); ++i) {
       if (!objects_[i] || model_.bodies[i].isStatic) continue;
-      const auto& box = objects_[i]->getAABB();
-      const Vec3 centre = 0.5 * (box.min_ + box.max_), half = 0.5 * (box.max_ - box.min_);
-      if (p.n.dot(centre) - half.dot(p.n.cwiseAbs()) <= p.offset) admitted(c, static_cast<int>(i), p.body);
+      const Box& b = reachBox_[i];
+      const Vec3 centre = 0.5 * (b.lo + b.hi), half = 0.5 * (b.hi - b.lo);
+      if (p.n.dot(centre) - half.dot(p.n.cwiseAbs()) > p.offset) continue;
+      const int a = std::min(static_cast<int>(i), p.body), c = std::max(static_cast<int>(i), p.body);
+      if (!admitted(a, c)) continue;
+      pairs.emplace_back(a, c);
+      planesAdded = true;
+      if (pairs.size() > maxPairs) return false;
     }
   }
-  std::sort(pairs.begin(), pairs.end());
-  return pairs.size() <= maxPairs;
+  if (planesAdded) std::sort(pairs.begin(), pairs.end());
+  return true;
 }
 
 }  // namespace substep

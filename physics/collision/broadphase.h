@@ -1,8 +1,17 @@
-// s1, broadphase: FCL's dynamic AABB tree over all bodies but planes, each box grown by how far
-// its body can move in a step; returns the pairs whose boxes overlap, minus static-static pairs
-// and pairs joined by a joint that does not let them collide. Planes have unbounded boxes, on
-// which FCL's tree build crashes: they stay out of the tree and meet every body whose box
-// reaches below them.
+// s1, broadphase: which pairs of bodies are close enough for the narrowphase this step.
+//
+// Each body's reach box is its tight box grown by how far it can get in a step: `reach` on every
+// side and, along gravity only, the step's fall h²|g| (a resting box's neighbour 1 cm away is not
+// in reach; grown by h²|g| sideways too, every pyramid box met both neighbours). FCL's dynamic
+// AABB tree holds *fat* boxes, reach boxes grown by a margin, as Box2D and Bullet keep them: a
+// body is moved in the tree only when its reach box leaves its fat box, and only then is the
+// tree queried for its new neighbours. The pairs whose fat boxes overlap persist from step to
+// step; each step's pairs are those of them whose reach boxes overlap. A resting pile changes
+// nothing in the tree and costs one box test per candidate pair.
+//
+// Static-static pairs, pairs a joint keeps apart and pairs the collision filter (model.h,
+// mayTouch) excludes are never pairs. Planes have unbounded boxes, on which FCL's tree build
+// crashes: they stay out of the tree and meet every body whose reach box reaches below them.
 #pragma once
 
 #include "physics/collision/shape_geometry.h"
@@ -22,20 +31,35 @@ class Broadphase {
  public:
   explicit Broadphase(const Model& model);
   ~Broadphase();
-  // Moves every dynamic body's FCL object to its state, grows its box by reach[i] on every side
-  // (how far the body can get in a step, plus the contact margin) and refits the tree.
-  void update(const State& state, const std::vector<double>& reach);
-  // Overlapping pairs (i < j by body index), in increasing order. The order is the solve order
-  // downstream, so it is made independent of the tree's traversal. Returns false, with the pairs
-  // found so far, when there are more than maxPairs (bodies started inside each other).
+  // Moves every dynamic body's box to its state, grown by reach[i] on every side and by `fall`
+  // (the step's h² g) along gravity, and refits the tree where a box left its fat box.
+  void update(const State& state, const std::vector<double>& reach, const Vec3& fall);
+  // Pairs (i < j by body index) whose reach boxes overlap, in increasing order: the order is the
+  // solve order downstream, so it does not depend on the tree. Returns false, with the pairs found
+  // so far, when there are more than maxPairs (bodies started inside each other).
   bool findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPairs);
   const CollisionShape& shape(int body) const { return shapes_[static_cast<size_t>(body)]; }
 
+  // For tests and metrics: bodies moved in the tree by the last update, candidate pairs kept.
+  int movedLastUpdate() const { return moved_; }
+  size_t candidatePairs() const { return candidates_.size(); }
+
  private:
+  struct Box {
+    Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+    bool overlaps(const Box& o) const { return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all(); }
+    bool contains(const Box& o) const { return (lo.array() <= o.lo.array()).all() && (o.hi.array() <= hi.array()).all(); }
+  };
+  bool admitted(int i, int j) const;
+
   const Model& model_;
   std::vector<CollisionShape> shapes_;
-  struct Object;  // an FCL object whose box can be grown
-  std::vector<std::unique_ptr<Object>> objects_;  // null for planes
+  std::vector<std::unique_ptr<fcl::CollisionObjectd>> objects_;  // null for planes; their AABB is the fat box
+  std::vector<Box> reachBox_;            // this step's, per body
+  std::vector<Box> fat_;                 // per body: the box the tree holds
+  std::vector<int> movedList_;           // bodies whose fat box changed in the last update
+  int moved_ = 0;
+  bool registered_ = false;
   struct Plane {
     int body;
     Vec3 n;          // world normal, out of the solid
@@ -43,7 +67,9 @@ class Broadphase {
   };
   std::vector<Plane> planes_;
   fcl::DynamicAABBTreeCollisionManagerd manager_;
-  std::vector<std::pair<int, int>> excluded_;  // sorted joint pairs that do not collide
+  std::vector<std::pair<int, int>> excluded_;    // sorted joint pairs that do not collide
+  std::vector<std::pair<int, int>> candidates_;  // sorted pairs whose fat boxes overlap
+  std::vector<std::pair<int, int>> found_;       // scratch: new candidates of moved bodies
 };
 
 }  // namespace substep

@@ -97,6 +97,7 @@ void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, doub
       if (taken[k]) {
         m.frictionImpulse = old->frictionImpulse;
         m.twistImpulse = old->twistImpulse;
+        if (m.count == old->count) m.blockMask = old->blockMask;
         break;
       }
   current_.push_back(m);

@@ -40,6 +40,7 @@ struct Manifold {
   // projection; the twist about the normal [N s, N m s].
   Vec3 frictionImpulse = Vec3::Zero();
   double twistImpulse = 0;
+  int blockMask = -1;          // contact blocks: the active set that fitted last (BlockData::lastMask)
   Vec3 relP = Vec3::Zero();    // B's origin in A's frame when the narrowphase made these points
   Quat relQ = Quat::Identity();  // B's orientation relative to A then
   double reach = 0;            // the larger distance of a point of either body from its origin that

@@ -120,8 +120,9 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // over four coplanar points overshoots in rotation, and with one sweep per sub-step a pyramid
   // rocks itself apart (docs/algorithms.md).
   auto normalUnits = [&] {
-    for (const FrictionDef& f : frictions) {
+    for (FrictionDef& f : frictions) {
       if (contactBlocks_ && f.normalCount > 1) {
+        f.unit = static_cast<int>(units.size());
         units.push_back(SolveUnit{f.firstNormal, f.normalCount, SolveUnit::Contact, -1});
       } else {
         for (int k = 0; k < f.normalCount; ++k) units.push_back(SolveUnit{f.firstNormal + k, 1});
@@ -140,6 +141,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     frictionUnits();
   }
   finish(0, static_cast<int>(rows.size()), mass, applyScale);
+  // The active set each contact block ended the last step with is where this step's starts.
+  for (size_t k = 0; k < frictions.size(); ++k)
+    if (frictions[k].unit >= 0)
+      blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)].lastMask = manifolds[k].blockMask;
 }
 
 void ConstraintSet::formulateJoint(const JointRef& ref, const std::vector<Pose>& poses, double h, bool jacobianOnly) {
@@ -219,6 +224,8 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
     const Row* fr = &rows[static_cast<size_t>(frictions[f].row)];
     m.frictionImpulse = frictions[f].qB.conjugate() * (fr[0].lambda * fr[0].linA + fr[1].lambda * fr[1].linA);
     m.twistImpulse = fr[2].lambda;
+    if (frictions[f].unit >= 0)
+      m.blockMask = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[f].unit)].block)].lastMask;
     ++f;
   }
 }

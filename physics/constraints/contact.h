@@ -41,6 +41,7 @@ struct FrictionDef {
   double radius = 0;           // mean distance of the points from the centroid [m]
   int row = 0;                 // its three rows: t1, t2, twist
   int firstNormal = 0, normalCount = 0;  // the manifold's normal rows (contiguous)
+  int unit = -1;               // their contact block's SolveUnit, if they are one
   Quat qB = Quat::Identity();  // B's orientation when formulated: warm-start impulses are kept in B's frame
 };
 

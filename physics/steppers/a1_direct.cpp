@@ -28,7 +28,7 @@ class DirectStepper final : public Stepper {
                                " matrix, more than its limit of " + std::to_string(c.settings->directMaxRows) +
                                " rows; use --algo a2..a5 for a scene this large");
     assembleMLCP(cs.rows, c.mass, c.v.data(), c.w.data(), p_);
-    const DirectResult res = solveDirect(p_, lambda_);
+    const DirectResult res = solveDirect(p_, lambda_, c.settings->directWorkBudget);
     if (!res.ok)
       throw std::runtime_error("a1: the direct MLCP solver found no answer to a " + std::to_string(n) +
                                "-row problem within its work budget; use --algo a2..a5 for this scene");

@@ -16,6 +16,7 @@ namespace {
 class HavokConceptualStepper final : public Stepper {
  public:
   void stepVelocities(StepContext& c) override {
+    c.rowsHeld = false;  // every row re-formulated between sub-steps
     stepVelocitiesScaled(c, [&c](int j) {  // proc3:15, exactly, from the coordinates at t + (j+1) h/n
       advanceSubPoses(c, j, RotationRule::Product);
       c.constraints->reformulate(c.subPoses, c.mass, c.h() / c.n(), ConstraintSet::Refresh::All, 1.0);

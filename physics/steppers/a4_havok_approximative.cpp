@@ -14,6 +14,7 @@ namespace {
 class HavokApproximativeStepper final : public Stepper {
  public:
   void stepVelocities(StepContext& c) override {
+    c.rowsHeld = c.constraints->joints.empty();  // contacts keep J̌ over the step (proc4:16 updates β only)
     stepVelocitiesScaled(c, [&c](int j) {
       ConstraintSet& cs = *c.constraints;
       updateBiases(cs, c.v, c.w);  // proc4:16, with J̌ʲ, before the joints' J̌ is recomputed

@@ -37,6 +37,7 @@ class HavokActualStepper final : public Stepper {
     const bool stableOnly = st.jacobians == JacobianRefresh::Stable && !cs.joints.empty();
     c.stats = StepStats{};
     c.stats.rows = static_cast<int>(cs.rows.size());
+    c.rowsHeld = cs.joints.empty();  // only joint rows are re-formulated between sub-steps
 
     splitPositionErrors(c);
     // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
@@ -78,6 +79,7 @@ class HavokActualStepper final : public Stepper {
         if (stableOnly) predictStableRows(c);
         c.stats.residual = sweep(cs, c.v, c.w, SweepScales{});
       }
+      endSubStepImpulses(c);
       // v̌ʲ = ŵʲ - šʲ, recorded for s4; then šʲ⁺¹ and ŵʲ⁺¹.
       for (size_t i = 0; i < nb; ++i) {
         const Vec3 v = c.v[i] - sumV_[i], w = c.w[i] - sumW_[i];

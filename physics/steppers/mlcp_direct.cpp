@@ -338,9 +338,9 @@ void densePgs(const DenseMLCP& p, std::vector<double>& x, int sweeps) {
 
 }  // namespace
 
-DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& x, double cfm) {
+DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& x, double workBudget, double cfm) {
   DirectResult res;
-  Budget budget{kDirectWorkBudget};
+  Budget budget{workBudget};
   const double n = p.n;
   auto consider = [&](std::vector<double>& y, int method) {
     polish(p, y, budget);
@@ -354,7 +354,7 @@ DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& x, double cfm)
     return res.residual <= kDirectTolerance;
   };
   auto finish = [&] {
-    res.work = kDirectWorkBudget - budget.left;
+    res.work = workBudget - budget.left;
     return res;
   };
   // 1. ODE's Dantzig, exact for fixed bounds: friction first frictionless, then bounded by the

@@ -28,10 +28,10 @@ void assembleMLCP(const std::vector<Row>& rows, const std::vector<BodyMass>& mas
 // Lemke's method stops after this many pivots per variable of its LCP (docs/algorithms.md).
 constexpr int kLemkePivotsPerVariable = 2;
 
-// A1's work per step, in floating-point operations estimated from the problem's size (Dantzig
-// n³/3, a polish 4n³/3, a Lemke pivot 2nz², a sweep n²): about 3 s on this machine. Within it the
+// A1's work per step is counted in floating-point operations estimated from the problem's size
+// (Dantzig n³/3, a polish 4n³/3, a Lemke pivot 2nz², a sweep n²); the budget is
+// SolverSettings::directWorkBudget (2e10 by default, about 3 s on this machine). Within it the
 // solver chain stops at the first exact answer; beyond it, it keeps the best answer so far.
-constexpr double kDirectWorkBudget = 2e10;
 
 // The residual A1 aims for [m/s].
 constexpr double kDirectTolerance = 1e-10;
@@ -40,12 +40,13 @@ struct DirectResult {
   bool ok = false;
   int method = 0;               // what gave the answer: 1 Dantzig, 2 Lemke, 3 Gauss-Seidel + polish
   double residual = 0;          // mlcpResidual of the answer
-  double work = 0;              // floating-point operations spent, estimated (at most kDirectWorkBudget)
+  double work = 0;              // floating-point operations spent, estimated (at most the budget)
 };
 
 // Solves p for λ (size n). Γ is regularised by cfm times its diagonal so that redundant
 // contact rows (four points and their friction on one box) keep the pivots finite.
-DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& lambda, double cfm = 1e-12);
+DirectResult solveDirect(const DenseMLCP& p, std::vector<double>& lambda, double workBudget = 2e10,
+                         double cfm = 1e-12);
 
 // Natural residual scaled to velocity: max_i Γ_ii |λ_i - clamp(λ_i - w_i/Γ_ii, lo_i, hi_i)| with
 // w = Γλ - b and friction bounds μλ of the row's normal. Zero exactly at a solution.

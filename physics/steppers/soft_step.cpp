@@ -52,6 +52,7 @@ class SoftStepper final : public Stepper {
     const Softness staticContact = makeSoft(2 * contactHz, st.contactDamping, h);
     const Softness joint = makeSoft(std::min(st.jointHertz, 0.25 / h), st.jointDamping, h);
     c.stats = StepStats{};
+    c.rowsHeld = cs.joints.empty();  // contact J̌ held over the step; joints re-formulated
     c.stats.rows = static_cast<int>(cs.rows.size());
 
     // What each row is, and for contacts C⁰ and the softness.
@@ -97,6 +98,7 @@ class SoftStepper final : public Stepper {
       currentSeparations(cs);
       prepare(cs, h, false, pushOut);
       for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep(c);
+      endSubStepImpulses(c);
     }
     c.stats.iterations = 2 * n * m;
     applyRestitution(c, c.v.data(), c.w.data(), 1.0);

@@ -69,12 +69,24 @@ bool solveSmall(double (&A)[4][4], double (&x)[4], int n) {
 
 // A contact block: the normal rows of one manifold, λ >= 0 each. Finds the increment Δ with
 //   λ + Δ >= 0,  w = KΔ - b >= 0,  (λ + Δ)ᵢ wᵢ = 0     (b = cBias β - cVel J̌v̌)
-// trying every point pushing first (the precomputed inverse), then the active set that fitted
-// last time (it rarely changes from one sweep to the next), then every smaller set by size.
+// trying none pushing (nothing needs to), every point pushing (the precomputed inverse), then the
+// active set that fitted last time (it rarely changes from one sweep to the next), then every
+// smaller set by size.
 void solveContactBlock(const SolveUnit& u, BlockData& d, Row* rows, const double* b, double* delta) {
   const int k = u.size;
   double lam[4];
-  for (int i = 0; i < k; ++i) lam[i] = rows[u.first + i].lambda;
+  bool idle = true;
+  for (int i = 0; i < k; ++i) {
+    lam[i] = rows[u.first + i].lambda;
+    idle = idle && lam[i] == 0 && b[i] <= 0;
+  }
+  // Nothing pushes and nothing wants to: the empty set fits (w = -b >= 0, Δ = 0). A third of the
+  // blocks on a standing pyramid (points apart, or lifted corners); enumerating the sets by size
+  // found it last.
+  if (idle) {
+    for (int i = 0; i < k; ++i) delta[i] = 0;
+    return;
+  }
   Eigen::Vector4d bb = Eigen::Vector4d::Zero();
   for (int i = 0; i < k; ++i) bb[i] = b[i];
   const Eigen::Vector4d full = d.invK * bb;
@@ -214,7 +226,31 @@ void startSubStepImpulses(StepContext& c, int j) {
       for (Row& r : cs.rows) r.lambda = 0;
     return;
   }
-  applyRowImpulses(cs, c.v, c.w);
+  if (!c.rowsHeld) {
+    applyRowImpulses(cs, c.v, c.w);
+    return;
+  }
+  c.startV.assign(c.v.begin(), c.v.end());
+  c.startW.assign(c.w.begin(), c.w.end());
+  if (j == 0) {  // last step's λ on this step's J̌
+    applyRowImpulses(cs, c.v, c.w);
+    return;
+  }
+  for (size_t i = 0; i < c.bodies(); ++i) {
+    c.v[i] += c.impV[i];
+    c.w[i] += c.impW[i];
+  }
+}
+
+void endSubStepImpulses(StepContext& c) {
+  if (!c.rowsHeld || !c.settings->warmStart) return;
+  const size_t nb = c.bodies();
+  c.impV.resize(nb);
+  c.impW.resize(nb);
+  for (size_t i = 0; i < nb; ++i) {
+    c.impV[i] = c.v[i] - c.startV[i];
+    c.impW[i] = c.w[i] - c.startW[i];
+  }
 }
 
 void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vector<Vec3>& w) {
@@ -235,6 +271,7 @@ void stepVelocitiesScaled(StepContext& c, const std::function<void(int j)>& betw
     addExternal(c, dt);
     startSubStepImpulses(c, j);
     for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = sweep(cs, c.v, c.w, scales);
+    endSubStepImpulses(c);
     recordSubStep(c, j);
     if (j + 1 < n) between(j);
   }

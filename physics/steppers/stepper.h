@@ -47,6 +47,11 @@ struct StepContext {
   // stepped with (as Box2D applies it after the sub-steps): when set, s4 takes these as v̌'.
   std::vector<Vec3> endV, endW;
   bool bounced = false;
+  // Warm starting sub-step j > 0 re-applies M̌⁻¹J̌ᵀλ of every row. When no row's J̌ changes between
+  // sub-steps (the stepper sets rowsHeld), that is the velocity change sub-step j-1's rows made,
+  // impV = v(after its sweeps) - startV(before its warm start), added per body instead of per row.
+  bool rowsHeld = false;
+  std::vector<Vec3> startV, startW, impV, impW;
   StepStats stats;
 
   double h() const { return settings->dt; }
@@ -145,8 +150,13 @@ void beginSubSteps(StepContext& c);
 // the same formulas s4 uses (so after the last sub-step they are s4's result).
 void advanceSubPoses(StepContext& c, int j, RotationRule rule);
 // Each sub-step solves a fresh MLCP (the report's algorithms do not warm start): λ = 0; with
-// warm starting, the last sub-step's (or step's) λ instead, applied to the velocities.
+// warm starting, the last sub-step's (or step's) λ instead, applied to the velocities: row by
+// row, or, for j > 0 with c.rowsHeld, as the per-body change endSubStepImpulses recorded (the
+// same sum in another order: equal to rounding).
 void startSubStepImpulses(StepContext& c, int j);
+// After a sub-step's sweeps: records what its rows did to the velocities, for the next sub-step's
+// warm start (only with warm starting and c.rowsHeld).
+void endSubStepImpulses(StepContext& c);
 // proc4:16, the bias update rule: β ← β - J̌ v̌ for every position-level row: not for friction
 // or motors, whose β is a velocity (IV.3.1.4; docs/algorithms.md).
 void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vector<Vec3>& w);
