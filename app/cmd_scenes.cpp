@@ -20,10 +20,14 @@ void addScenesCommand(CLI::App& app, std::function<int()>& action) {
       const std::string folder = dir->empty() ? assetsDir() + "/scenes" : *dir;
       std::error_code ec;
       if (!fs::is_directory(folder, ec)) throw UsageError(folder + ": not a folder of scene files");
+      // Subfolders too (atlas/, reference/), named as `sweep --scenes` takes them: "atlas/card_house".
       std::vector<fs::path> files;
-      for (const auto& e : fs::directory_iterator(folder))
+      for (const auto& e : fs::recursive_directory_iterator(folder))
         if (e.path().extension() == ".json") files.push_back(e.path());
-      std::sort(files.begin(), files.end());
+      std::sort(files.begin(), files.end(), [&](const fs::path& a, const fs::path& b) {
+        const auto depth = [&](const fs::path& p) { return std::distance(p.lexically_relative(folder).begin(), p.lexically_relative(folder).end()); };
+        return depth(a) != depth(b) ? depth(a) < depth(b) : a < b;
+      });
       std::cout << "Scene files in " << folder << ":\n";
       for (const auto& f : files) {
         std::string line;
@@ -35,11 +39,12 @@ void addScenesCommand(CLI::App& app, std::function<int()>& action) {
         } catch (const SceneError& e) {
           line = std::string("(does not load: ") + e.what() + ")";
         }
-        std::cout << "  " << std::left << std::setw(22) << f.stem().string() << line << "\n";
+        const fs::path name = f.lexically_relative(folder).replace_extension();
+        std::cout << "  " << std::left << std::setw(28) << name.string() << line << "\n";
       }
       std::cout << "Generators (in a scene's \"generators\" list):\n";
       for (const GeneratorInfo& g : generatorList())
-        std::cout << "  " << std::left << std::setw(22) << g.type << g.summary << "\n";
+        std::cout << "  " << std::left << std::setw(28) << g.type << g.summary << "\n";
       return 0;
     };
   });

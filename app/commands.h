@@ -12,5 +12,9 @@ void addScenesCommand(CLI::App& app, std::function<int()>& action);
 void addRenderCommand(CLI::App& app, std::function<int()>& action);
 void addSnapshotCommand(CLI::App& app, std::function<int()>& action);
 void addServeCommand(CLI::App& app, std::function<int()>& action);
+void addSweepCommand(CLI::App& app, std::function<int()>& action);
+void addChartCommand(CLI::App& app, std::function<int()>& action);
+void addAtlasCommand(CLI::App& app, std::function<int()>& action);
+void addAdviseCommand(CLI::App& app, std::function<int()>& action);
 
 }  // namespace substep::app

@@ -140,6 +140,12 @@ std::string assetsDir() {
   return std::string(SUBSTEP_SOURCE_DIR) + "/assets";
 }
 
+std::string scenePath(const std::string& name) {
+  const bool json = name.size() > 5 && name.compare(name.size() - 5, 5, ".json") == 0;
+  if (json || name.rfind("./", 0) == 0 || name.rfind("/", 0) == 0 || name.rfind("../", 0) == 0) return name;
+  return assetsDir() + "/scenes/" + name + ".json";
+}
+
 bool samePath(const std::string& a, const std::string& b) {
   std::error_code ea, eb;
   if (fs::equivalent(a, b, ea)) return true;
@@ -283,6 +289,13 @@ void Progress::update(long long done) {
   std::fprintf(stderr, "\r%s [%s] %lld/%lld  %.1f/s  %.0f s left   ", label_.c_str(), bar.c_str(), done, total_, rate,
                left);
   std::fflush(stderr);
+}
+
+void Progress::clear() {
+  if (!shown_) return;
+  std::fprintf(stderr, "\r%*s\r", 80, "");
+  std::fflush(stderr);
+  lastDraw_ = -1;
 }
 
 void Progress::finish() {

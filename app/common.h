@@ -55,6 +55,10 @@ void addMaxBodies(CLI::App& cmd, SceneLimits& lim);
 
 // Where assets live: $SUBSTEP_ASSETS, else the source tree's assets/.
 std::string assetsDir();
+// A scene named on the command line: a path (it holds a '/' or ends in .json) as it is, else a
+// name in the assets' scenes/ folder: "chain" -> <assets>/scenes/chain.json, "atlas/card_house"
+// -> <assets>/scenes/atlas/card_house.json.
+std::string scenePath(const std::string& name);
 
 // Temporary outputs are named <output>.part<pid>. Removes those next to `output` whose process
 // is gone (a run killed with SIGKILL, or a crash), so they do not pile up.
@@ -107,6 +111,8 @@ class Progress {
  public:
   Progress(std::string label, long long total, bool show = true);
   void update(long long done);
+  // Takes the bar off the line, so that a message can be printed there; the next update redraws it.
+  void clear();
   void finish();
 
  private:

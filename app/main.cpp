@@ -15,5 +15,9 @@ int main(int argc, char** argv) {
   addRenderCommand(app, action);
   addSnapshotCommand(app, action);
   addServeCommand(app, action);
+  addSweepCommand(app, action);
+  addChartCommand(app, action);
+  addAtlasCommand(app, action);
+  addAdviseCommand(app, action);
   return runCommandLine(app, argc, argv, "substep", [&] { return action ? action() : 0; });
 }

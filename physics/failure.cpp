@@ -22,16 +22,25 @@ double halfSize(const Shape& s) {
 
 }  // namespace
 
-double mechanicalEnergy(const Model& model, const State& s) {
+double kineticEnergy(const Model& model, const State& s) {
   double e = 0;
   for (size_t i = 0; i < model.bodies.size(); ++i) {
     const Body& b = model.bodies[i];
     if (b.isStatic) continue;
     const BodyState& x = s.bodies[i];
-    e += 0.5 * b.mass * x.v.squaredNorm() + 0.5 * x.w.dot(b.inertia.cwiseProduct(x.w)) - b.mass * model.gravity.dot(x.x);
+    e += 0.5 * b.mass * x.v.squaredNorm() + 0.5 * x.w.dot(b.inertia.cwiseProduct(x.w));
   }
   return e;
 }
+
+double potentialEnergy(const Model& model, const State& s) {
+  double e = 0;
+  for (size_t i = 0; i < model.bodies.size(); ++i)
+    if (!model.bodies[i].isStatic) e -= model.bodies[i].mass * model.gravity.dot(s.bodies[i].x);
+  return e;
+}
+
+double mechanicalEnergy(const Model& model, const State& s) { return kineticEnergy(model, s) + potentialEnergy(model, s); }
 
 std::string FailureReport::verdict() const {
   char buf[96];
@@ -62,7 +71,9 @@ FailureWatch::FailureWatch(const Model& model, const State& initial, const Failu
     topSize_ = 2 * model.bodies[static_cast<size_t>(top_)].shape.boundingRadius();
   }
   energy0_ = mechanicalEnergy(model, initial);
-  energyScale_ = std::max(energyScale_, 1e-9);
+  // Without gravity the lifting energy is zero, and a spinning body's round-off would count as
+  // divergence: the kinetic energy at the start is in play too.
+  energyScale_ = std::max(energyScale_ + kineticEnergy(model, initial), 1e-9);
 }
 
 void FailureWatch::observe(const State& s, bool finite) {

@@ -190,6 +190,9 @@ class Reader {
 
  private:
   void readSolver(const Obj& o, SolverOverrides& s) const;
+  void readCriteria(const Obj& o, Scene& scene) const;
+  std::vector<int> bodyList(const Obj& o, const std::string& key, const Scene& scene) const;
+  int dynamicBody(const Obj& o, const json& v, const std::string& path, const Scene& scene) const;
   void readBody(const Obj& o, Scene& scene);
   Shape readShape(const Obj& o, bool isStatic, Pose* principal);
   void readMaterial(const Obj& o, BodyMaterial& m, bool isStatic) const;
@@ -235,7 +238,7 @@ std::string oneOf(const Obj& o, const std::string& k, const std::vector<std::str
 
 Scene Reader::read(const json& root) {
   Obj top(*this, root, "");
-  top.allow({"description", "gravity", "solver", "bodies", "joints", "generators", "cameras"});
+  top.allow({"description", "gravity", "solver", "bodies", "joints", "generators", "cameras", "criteria"});
 
   Scene scene;
   scene.file = file_;
@@ -275,6 +278,7 @@ Scene Reader::read(const json& root) {
         fail(o.at("name"), "duplicate camera name " + inQuotes(scene.cameras.back().name));
     }
   }
+  if (top.has("criteria")) readCriteria(Obj(*this, top.need("criteria"), "criteria"), scene);
   if (scene.model.dynamicCount() == 0)
     fail("", "expected at least one dynamic body, found none (" +
                  (scene.model.bodies.empty() ? std::string("no bodies at all")
@@ -307,6 +311,126 @@ void Reader::readSolver(const Obj& o, SolverOverrides& s) const {
       fail(path, e.what());
     }
   }
+}
+
+// Ranges of the criteria's numbers.
+constexpr Range kRunSeconds{0, 3600, true};   // a lab run [s]
+constexpr Range kBound{0, 1e9};               // an "at most" of a criterion
+constexpr Range kShare{0, 1, true};           // a fraction of the motion
+
+int Reader::dynamicBody(const Obj& o, const json& v, const std::string& path, const Scene& scene) const {
+  const int b = bodyByName(o, v, path, scene);
+  if (scene.model.bodies[static_cast<size_t>(b)].isStatic)
+    fail(path, "body " + inQuotes(scene.model.bodies[static_cast<size_t>(b)].name) + " is static; expected a dynamic body");
+  return b;
+}
+
+std::vector<int> Reader::bodyList(const Obj& o, const std::string& key, const Scene& scene) const {
+  // One name (a string) or a non-empty array of them, each a dynamic body, none twice.
+  const json& v = o.need(key);
+  const std::string path = o.at(key);
+  if (v.is_string()) return {dynamicBody(o, v, path, scene)};
+  if (!v.is_array() || v.empty()) fail(path, "expected a non-empty array of body names, got " + shown(v));
+  std::vector<int> out;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const int b = dynamicBody(o, v[i], item(path, i), scene);
+    if (std::find(out.begin(), out.end(), b) != out.end()) fail(item(path, i), "body " + inQuotes(v[i].get<std::string>()) + " is listed twice");
+    out.push_back(b);
+  }
+  return out;
+}
+
+void Reader::readCriteria(const Obj& o, Scene& scene) const {
+  o.allow({"stresses", "seconds", "tolerance", "rest", "conservative", "error", "reference", "with", "pass"});
+  SceneCriteria c;
+  c.stresses = o.string("stresses", "");
+  c.seconds = o.number("seconds", kRunSeconds, c.seconds);
+  if (o.has("tolerance")) c.tolerance = o.number("tolerance", Range{0, limits::kLength.hi, true});
+  if (o.has("rest")) c.rest = bodyList(o, "rest", scene);
+  c.conservative = o.boolean("conservative", false);
+  auto metricName = [&](const std::string& name, const std::string& path) {
+    const auto& names = criterionMetrics();
+    if (std::find(names.begin(), names.end(), name) == names.end())
+      fail(path, "unknown quantity " + inQuotes(name) + " (expected one of: " + listOf(names) + ")");
+  };
+  if (o.has("error")) {
+    c.error = o.string("error");
+    metricName(c.error, o.at("error"));
+  }
+  if (o.has("reference")) {
+    const Obj r(*this, o.need("reference"), o.at("reference"));
+    const std::string type = oneOf(r, "type", {"pendulum", "free_fall", "torque_free", "converged"}, "reference type");
+    SceneReference ref;
+    if (type == "pendulum") {
+      r.allow({"type", "body", "pivot"});
+      ref.kind = SceneReference::Kind::Pendulum;
+      const int b = dynamicBody(r, r.need("body"), r.at("body"), scene);
+      ref.body = scene.model.bodies[static_cast<size_t>(b)].name;
+      ref.pivot = r.vec3("pivot", limits::kCoordinate);
+      if ((scene.initial.bodies[static_cast<size_t>(b)].x - ref.pivot).norm() < limits::kSize.lo)
+        fail(r.at("pivot"), "the pivot is at the body's centre; a pendulum swings about a point away from it");
+    } else if (type == "converged") {
+      r.allow({"type", "method", "change"});
+      ref.kind = SceneReference::Kind::Converged;
+      ref.method = r.string("method");
+      try {
+        const std::vector<MethodSpec> m = expandMethodSpec(ref.method);
+        if (m.size() != 1) fail(r.at("method"), "expected one method, got a grid of " + std::to_string(m.size()));
+        if (!m[0].peer.empty()) fail(r.at("method"), "a reference is one of substep's algorithms (a1 or a3 at a small h), not the " + m[0].peer + " peer");
+        if (!m[0].overrides.dt) fail(r.at("method"), "give the reference's time step, e.g. \"a1:h=1/960\"");
+      } catch (const std::invalid_argument& e) {
+        fail(r.at("method"), e.what());
+      }
+      ref.change = r.number("change", kShare, ref.change);
+    } else {
+      r.allow({"type"});
+      ref.kind = type == "free_fall" ? SceneReference::Kind::FreeFall : SceneReference::Kind::TorqueFree;
+    }
+    c.reference = ref;
+  }
+  if (o.has("with")) {
+    const Obj w(*this, o.need("with"), o.at("with"));
+    readSolver(w, c.with);
+    if (c.with.algorithm || c.with.preset)
+      fail(w.path(), "\"with\" holds settings every method runs with; the algorithm and presets are the method's");
+  }
+  if (o.has("pass")) {
+    const Obj p(*this, o.need("pass"), o.at("pass"));
+    std::vector<std::string> keys = criterionMetrics();
+    keys.insert(keys.end(), {"moving", "stay_in", "turns"});
+    p.allow(keys);
+    for (const std::string& name : criterionMetrics())
+      if (p.has(name)) c.pass.emplace_back(name, p.number(name, kBound));
+    if (p.has("moving")) {
+      const Obj m(*this, p.need("moving"), p.at("moving"));
+      m.allow({"bodies", "at_least"});
+      c.moving = SceneCriteria::Moving{bodyList(m, "bodies", scene), m.number("at_least", Range{0, limits::kLength.hi, true})};
+    }
+    if (p.has("stay_in")) {
+      const Obj m(*this, p.need("stay_in"), p.at("stay_in"));
+      m.allow({"body", "min", "max"});
+      SceneCriteria::StayIn in;
+      in.body = bodyList(m, "body", scene)[0];
+      in.lo = m.vec3("min", limits::kCoordinate);
+      in.hi = m.vec3("max", limits::kCoordinate);
+      const Vec3 x = scene.initial.bodies[static_cast<size_t>(in.body)].x;
+      for (int k = 0; k < 3; ++k) {
+        if (!(in.lo[k] < in.hi[k])) fail(m.path(), "expected min < max on every axis; axis " + std::string(1, "xyz"[k]) + " has " + numberText(in.lo[k]) + " and " + numberText(in.hi[k]));
+        if (x[k] < in.lo[k] || x[k] > in.hi[k]) fail(m.path(), "body " + inQuotes(scene.model.bodies[static_cast<size_t>(in.body)].name) + " starts outside the box (axis " + std::string(1, "xyz"[k]) + ")");
+      }
+      c.stayIn = in;
+    }
+    if (p.has("turns")) {
+      const Obj m(*this, p.need("turns"), p.at("turns"));
+      m.allow({"body", "axis", "at_least"});
+      SceneCriteria::Turns t;
+      t.body = bodyList(m, "body", scene)[0];
+      t.axis = m.unit("axis");
+      t.atLeast = m.number("at_least", Range{0, 3.1416, true});
+      c.turns = t;
+    }
+  }
+  scene.criteria = c;
 }
 
 // Names end up in CSV columns, messages and the HUD: printable, and not a paragraph.
@@ -824,6 +948,23 @@ std::string sourcePosition(const std::string& text, size_t pos) {
 }
 
 }  // namespace
+
+const std::vector<std::string>& criterionMetrics() {
+  static const std::vector<std::string> names = {
+      "penetration", "penetration_end", "joint_error", "joint_angle_error", "limit_excess",   "displacement",
+      "jitter",      "speed",           "energy_drift", "momentum_drift",   "trajectory_error", "reference_error"};
+  return names;
+}
+
+const char* referenceKindName(SceneReference::Kind k) {
+  switch (k) {
+    case SceneReference::Kind::Pendulum: return "pendulum";
+    case SceneReference::Kind::FreeFall: return "free_fall";
+    case SceneReference::Kind::TorqueFree: return "torque_free";
+    case SceneReference::Kind::Converged: return "converged";
+  }
+  return "?";
+}
 
 Scene parseScene(const std::string& text, const std::string& file, const std::string& baseDir,
                  const SceneLimits& lim) {

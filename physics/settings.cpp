@@ -1,6 +1,5 @@
 #include "physics/settings.h"
 
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -259,14 +258,26 @@ void SettingSpec::setText(SolverOverrides& o, const std::string& text) const {
   switch (kind) {
     case SettingKind::Integer:
     case SettingKind::Real: {
-      // Whole text, decimal, finite: "nan", "inf", "1e999", "4x" and "" are refused.
-      const char* begin = text.c_str();
-      char* end = nullptr;
-      errno = 0;
-      const double x = text.empty() ? NAN : std::strtod(begin, &end);
-      if (text.empty() || end != begin + text.size() || !std::isfinite(x) ||
-          text.find_first_of("xXpP \t\n") != std::string::npos)
-        throw bad;
+      // Whole text, decimal, finite: "nan", "inf", "1e999", "4x" and "" are refused. A real may
+      // be a fraction of two such numbers, "1/120", as time steps are written.
+      auto decimal = [&](const std::string& t) {
+        const char* begin = t.c_str();
+        char* end = nullptr;
+        const double x = t.empty() ? NAN : std::strtod(begin, &end);
+        if (t.empty() || end != begin + t.size() || !std::isfinite(x) || t.find_first_of("xXpP \t\n") != std::string::npos)
+          throw bad;
+        return x;
+      };
+      const size_t slash = text.find('/');
+      double x = 0;
+      if (slash != std::string::npos && kind == SettingKind::Real) {
+        const double q = decimal(text.substr(slash + 1));
+        if (q == 0) throw bad;
+        x = decimal(text.substr(0, slash)) / q;
+        if (!std::isfinite(x)) throw bad;
+      } else {
+        x = decimal(text);
+      }
       try {
         setNumber(o, x);
       } catch (const std::invalid_argument&) {
@@ -345,9 +356,10 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
   const std::vector<std::string> parts = split(spec, ":;");
   const std::string algo = trim(parts[0]);
   const std::optional<Algorithm> a = parseAlgorithm(algo);
-  if (!a)
+  const bool bullet = algo == kBulletPeer;
+  if (!a && !bullet)
     throw std::invalid_argument(quoted(spec) + ": unknown algorithm " + quoted(algo) +
-                                "; a method starts with one of a1, a2, a3, a4, a5" + usage);
+                                "; a method starts with one of a1, a2, a3, a4, a5, soft, or the peer bullet" + usage);
   // Each key=value (or key=v1|v2|...), checked, in order.
   struct Axis {
     const SettingSpec* setting;
@@ -362,9 +374,14 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
     if (eq == std::string::npos || eq == 0)
       throw std::invalid_argument(quoted(spec) + ": expected key=value, got " + quoted(kv) + usage);
     const std::string key = trim(kv.substr(0, eq));
-    const SettingSpec* s = findSetting(key);
+    const SettingSpec* s = findSetting(bullet && key == "it" ? "iterations" : key);
     if (!s || std::string(s->key) == "algorithm")
-      throw std::invalid_argument(quoted(spec) + ": unknown key " + quoted(key) + " (keys: " + settingKeys() + ")");
+      throw std::invalid_argument(quoted(spec) + ": unknown key " + quoted(key) + " (keys: " +
+                                  (bullet ? std::string("h, it, gyro") : settingKeys()) + ")");
+    const std::string k = s->key;
+    if (bullet && k != "dt" && k != "iterations" && k != "gyroscopic")
+      throw std::invalid_argument(quoted(spec) + ": the Bullet peer takes h, it and gyro; " + key +
+                                  " is a setting of substep's algorithms");
     for (const Axis& x : axes)
       if (x.setting == s) throw std::invalid_argument(quoted(spec) + ": " + key + " is given twice");
     Axis axis{s, key, {}};
@@ -388,6 +405,7 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
     MethodSpec m;
     m.text = algo;
     m.overrides.algorithm = a;
+    if (bullet) m.peer = kBulletPeer;
     for (size_t k = 0; k < axes.size(); ++k) {
       axes[k].setting->setText(m.overrides, axes[k].values[at[k]]);
       m.text += ":" + axes[k].key + "=" + axes[k].values[at[k]];

@@ -134,10 +134,19 @@ std::string settingKeys();
 //     a5:n=4:kappa=0.85          a2:m=10:omega=1.3:warm=on
 // Settings after the algorithm are key=value (keys or aliases of the table), separated by ':'
 // (or ';'). A value may be a list a|b|c: the spec then names the grid of every combination.
+// Real values may be written as fractions: h=1/120.
+//
+// A spec may also name a peer engine instead of an algorithm: `bullet:it=10:h=1/60` is Bullet 3
+// stepping the same scene (the lab's peer, lab/bullet_peer.h), with the settings it maps: h (dt),
+// it (or m, iterations: its solver iterations) and gyro (its gyroscopic term). The peer itself is
+// the lab's business; the spec language is the same for every method.
 struct MethodSpec {
   std::string text;            // as written (one combination: the lists resolved)
-  SolverOverrides overrides;   // the algorithm and the settings it names
+  SolverOverrides overrides;   // the algorithm and the settings it names (a peer: no algorithm)
+  std::string peer;            // "" for substep's algorithms, "bullet" for the Bullet peer
 };
+// The peer engines a spec may name, and the setting keys each takes.
+inline constexpr const char* kBulletPeer = "bullet";
 // One spec; with value lists, every combination in order (the last key varies fastest).
 // Throws std::invalid_argument naming the spec, the key and what was expected.
 std::vector<MethodSpec> expandMethodSpec(const std::string& spec);

@@ -1,6 +1,7 @@
 #include "physics/world.h"
 
 #include "physics/collision/contact_margin.h"
+#include "physics/failure.h"
 #include "physics/limits.h"
 
 #include <algorithm>
@@ -204,25 +205,9 @@ RayHit World::raycast(const Vec3& origin, const Vec3& direction, double maxDista
   return substep::raycast(model_, state_, origin, direction, maxDistance, dynamicOnly);
 }
 
-double World::kineticEnergy() const {
-  double e = 0;
-  for (size_t i = 0; i < state_.bodies.size(); ++i) {
-    const Body& b = model_.bodies[i];
-    if (b.isStatic) continue;
-    const BodyState& s = state_.bodies[i];
-    e += 0.5 * b.mass * s.v.squaredNorm() + 0.5 * s.w.dot(b.inertia.cwiseProduct(s.w));
-  }
-  return e;
-}
+double World::kineticEnergy() const { return substep::kineticEnergy(model_, state_); }
 
-double World::potentialEnergy() const {
-  double e = 0;
-  for (size_t i = 0; i < state_.bodies.size(); ++i) {
-    const Body& b = model_.bodies[i];
-    if (!b.isStatic) e -= b.mass * model_.gravity.dot(state_.bodies[i].x);
-  }
-  return e;
-}
+double World::potentialEnergy() const { return substep::potentialEnergy(model_, state_); }
 
 double World::maxPenetration() const {
   std::vector<Pose> poses(state_.bodies.size());

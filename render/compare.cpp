@@ -16,7 +16,13 @@ std::vector<CompareSpec> parseCompareSpecs(const std::string& s) {
     throw std::invalid_argument("--compare: expected 2 to 4 panels separated by commas (value lists a|b count "
                                 "as one panel each), got " + std::to_string(methods.size()) + usage);
   std::vector<CompareSpec> specs;
-  for (const MethodSpec& m : methods) specs.push_back({m.text, m.overrides});
+  for (const MethodSpec& m : methods) {
+    if (!m.peer.empty())
+      throw std::invalid_argument("--compare: \"" + m.text + "\": the " + m.peer +
+                                  " peer is measured by the lab (substep sweep, substep atlas), not drawn here; "
+                                  "panels take substep's algorithms a1 ... a5, soft");
+    specs.push_back({m.text, m.overrides});
+  }
   return specs;
 }
 

@@ -10,7 +10,7 @@ SUBSTEP_PACKAGES=(
   libosmesa6-dev libstb-dev fonts-dejavu-core
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libcpp-httplib-dev
   libdart-external-odelcpsolver-dev libbullet-dev
-  ffmpeg gnuplot-nox
+  ffmpeg gnuplot-nox parallel
 )
 
 # The fuzz build's compiler: clang 14 with libFuzzer and the sanitizer runtimes.

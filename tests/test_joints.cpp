@@ -139,6 +139,41 @@ TEST_P(EveryAlgorithm, HingeKeepsAxisAnchorAndLimits) {
   EXPECT_LT(worstAnchor, 0.02);
 }
 
+// The per-kind measures of the lab: a hinge's axes apart, a fixed joint's turn, limits exceeded.
+// Poses are set by hand, so each figure is known exactly.
+TEST(JointMeasures, AngularErrorAndLimitExcessByKind) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "post", "static": true, "shape": {"type": "box", "half_extents": [0.1, 0.1, 0.1]}, "position": [0, 3, 0]},
+      {"name": "arm", "shape": {"type": "box", "half_extents": [0.5, 0.05, 0.05]}, "position": [0.5, 3, 0], "mass": 1}],
+    "joints": [{"type": "hinge", "bodies": ["post", "arm"], "anchor": [0, 3, 0], "axis": [0, 0, 1], "limits": [-1.0, 0.5]},
+               {"type": "fixed", "bodies": ["post", "arm"], "anchor": [0, 3, 0]},
+               {"type": "cone_twist", "bodies": ["post", "arm"], "anchor": [0, 3, 0], "axis": [1, 0, 0],
+                "swing": 0.2, "limits": [-0.1, 0.1]},
+               {"type": "ball", "bodies": ["post", "arm"], "anchor": [0, 3, 0]}]})");
+  const Pose A = s.initial.bodies[0].pose();
+  Pose B = s.initial.bodies[1].pose();
+  const Joint &hinge = s.model.joints[0], &fixed = s.model.joints[1], &cone = s.model.joints[2], &ball = s.model.joints[3];
+  // At the start every joint holds.
+  for (const Joint& j : s.model.joints) {
+    EXPECT_NEAR(jointAngularError(j, A, B), 0, 1e-12) << jointTypeName(j.type);
+    EXPECT_EQ(jointLimitExcess(j, A, B).max(), 0) << jointTypeName(j.type);
+  }
+  // Turned by 0.8 rad about the hinge axis (Z): past the hinge's upper limit 0.5 by 0.3; the axes
+  // still agree; the fixed joint is off by 0.8; the cone's X axis swings by 0.8, 0.6 past it.
+  B.q = Quat(Eigen::AngleAxisd(0.8, Vec3::UnitZ()));
+  EXPECT_NEAR(jointAngularError(hinge, A, B), 0, 1e-12);
+  EXPECT_NEAR(jointLimitExcess(hinge, A, B).hinge, 0.3, 1e-12);
+  EXPECT_NEAR(jointAngularError(fixed, A, B), 0.8, 1e-12);
+  EXPECT_NEAR(jointLimitExcess(cone, A, B).swing, 0.6, 1e-12);
+  EXPECT_NEAR(jointLimitExcess(cone, A, B).max(), 0.6, 1e-12);
+  // Turned by 0.3 rad about X: the hinge's axes 0.3 apart; the cone twists 0.3, 0.2 past its limit.
+  B.q = Quat(Eigen::AngleAxisd(0.3, Vec3::UnitX()));
+  EXPECT_NEAR(jointAngularError(hinge, A, B), 0.3, 1e-12);
+  EXPECT_NEAR(jointLimitExcess(cone, A, B).twist, 0.2, 1e-12);
+  EXPECT_EQ(jointLimitExcess(cone, A, B).swing, 0);
+  EXPECT_EQ(jointAngularError(ball, A, B), 0);
+}
+
 // A pendulum on a cone-twist joint, released from horizontal, swings no further than its cone.
 TEST_P(EveryAlgorithm, ConeTwistKeepsItsCone) {
   const Scene s = sceneFrom(R"({"bodies": [

@@ -739,3 +739,79 @@ TEST(SceneFrames, FilteringInertiaAndAnchorSize) {
   expectError(scene(R"({"name": "a", "shape": {"type": "sphere", "radius": 1}, "category": -1})"), "bodies[0].category",
               {"in [0, 4294967295]"});
 }
+
+// ---------------------------------------------------------------- criteria (the lab's)
+
+TEST(SceneCriteria, EveryPartIsRead) {
+  const std::string bodies = ground() + "," + kBall + R"(, {"name": "box", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [3, 0.5, 0]})";
+  const Scene s = parse(scene(bodies, R"("criteria": {
+      "stresses": "a ball and a box", "seconds": 2.5, "tolerance": 0.02, "rest": ["box"], "conservative": true,
+      "error": "penetration", "reference": {"type": "converged", "method": "a1:h=1/960", "change": 0.05},
+      "with": {"gyroscopic": "implicit"},
+      "pass": {"penetration": 0.01, "jitter": 0.05, "moving": {"bodies": "ball", "at_least": 1},
+               "stay_in": {"body": "ball", "min": [-1, -1, -1], "max": [1, 3, 1]},
+               "turns": {"body": "box", "axis": [0, 2, 0], "at_least": 2.5}}})"));
+  ASSERT_TRUE(s.criteria);
+  const SceneCriteria& c = *s.criteria;
+  EXPECT_EQ(c.stresses, "a ball and a box");
+  EXPECT_EQ(c.seconds, 2.5);
+  EXPECT_EQ(c.tolerance, 0.02);
+  EXPECT_EQ(c.rest, std::vector<int>{2});
+  EXPECT_TRUE(c.conservative);
+  EXPECT_EQ(c.error, "penetration");
+  ASSERT_TRUE(c.reference);
+  EXPECT_EQ(c.reference->kind, SceneReference::Kind::Converged);
+  EXPECT_EQ(c.reference->method, "a1:h=1/960");
+  EXPECT_EQ(c.reference->change, 0.05);
+  EXPECT_EQ(c.with.gyroscopic, "implicit");
+  ASSERT_EQ(c.pass.size(), 2u);
+  EXPECT_EQ(c.pass[0], std::make_pair(std::string("penetration"), 0.01));
+  ASSERT_TRUE(c.moving && c.stayIn && c.turns);
+  EXPECT_EQ(c.moving->bodies, std::vector<int>{1});
+  EXPECT_EQ(c.stayIn->hi, Vec3(1, 3, 1));
+  EXPECT_EQ(c.turns->axis, Vec3::UnitY());  // normalised
+  // Without the block there are no criteria; with an empty one, the defaults.
+  EXPECT_FALSE(parse(scene(kBall)).criteria);
+  const Scene d = parse(scene(kBall, R"("criteria": {})"));
+  ASSERT_TRUE(d.criteria);
+  EXPECT_EQ(d.criteria->seconds, 3);
+  EXPECT_FALSE(d.criteria->tolerance);
+  const Scene p = parse(scene(kBall, R"("criteria": {"reference": {"type": "pendulum", "body": "ball", "pivot": [0, 3, 0]}})"));
+  EXPECT_EQ(p.criteria->reference->kind, SceneReference::Kind::Pendulum);
+  EXPECT_EQ(p.criteria->reference->pivot, Vec3(0, 3, 0));
+}
+
+TEST(SceneCriteria, ErrorsNameThePath) {
+  const std::string b = ground() + "," + kBall;
+  auto with = [&](const std::string& criteria) { return scene(b, "\"criteria\": " + criteria); };
+  expectError(with(R"({"secs": 2})"), "criteria", {"unknown key \"secs\"", "seconds"});
+  expectError(with(R"({"seconds": 0})"), "criteria.seconds", {"in (0, 3600]"});
+  expectError(with(R"({"tolerance": -1})"), "criteria.tolerance", {"got -1"});
+  expectError(with(R"({"rest": ["ground"]})"), "criteria.rest[0]", {"\"ground\" is static"});
+  expectError(with(R"({"rest": ["ball", "ball"]})"), "criteria.rest[1]", {"listed twice"});
+  expectError(with(R"({"rest": []})"), "criteria.rest", {"non-empty array"});
+  expectError(with(R"({"error": "wobble"})"), "criteria.error", {"unknown quantity \"wobble\"", "joint_error"});
+  expectError(with(R"({"pass": {"penetration": -0.1}})"), "criteria.pass.penetration", {"in [0, 1e9]"});
+  expectError(with(R"({"pass": {"wobble": 1}})"), "criteria.pass", {"unknown key \"wobble\""});
+  expectError(with(R"({"pass": {"moving": {"bodies": ["nobody"], "at_least": 1}}})"), "criteria.pass.moving.bodies[0]",
+              {"unknown body \"nobody\""});
+  expectError(with(R"({"pass": {"stay_in": {"body": "ball", "min": [0, 0, 0], "max": [1, 1, 1]}}})"),
+              "criteria.pass.stay_in", {"starts outside the box (axis y)"});
+  expectError(with(R"({"pass": {"stay_in": {"body": "ball", "min": [0, 0, 0], "max": [0, 3, 1]}}})"),
+              "criteria.pass.stay_in", {"expected min < max", "axis x"});
+  expectError(with(R"({"pass": {"turns": {"body": "ball", "axis": [0, 0, 0], "at_least": 1}}})"),
+              "criteria.pass.turns.axis", {"non-zero vector"});
+  expectError(with(R"({"reference": {"type": "analytic"}})"), "criteria.reference.type", {"unknown reference type"});
+  expectError(with(R"({"reference": {"type": "pendulum", "body": "ball", "pivot": [0, 2, 0]}})"), "criteria.reference.pivot",
+              {"at the body's centre"});
+  expectError(with(R"({"reference": {"type": "converged", "method": "a1"}})"), "criteria.reference.method",
+              {"give the reference's time step"});
+  expectError(with(R"({"reference": {"type": "converged", "method": "a1:h=1/960|1/480"}})"), "criteria.reference.method",
+              {"a grid of 2"});
+  expectError(with(R"({"reference": {"type": "converged", "method": "bullet:h=0.001"}})"), "criteria.reference.method",
+              {"not the bullet peer"});
+  expectError(with(R"({"reference": {"type": "converged", "method": "a1:h=0.001", "change": 0}})"),
+              "criteria.reference.change", {"in (0, 1]"});
+  expectError(with(R"({"with": {"algorithm": "a5"}})"), "criteria.with", {"the algorithm and presets are the method's"});
+  expectError(with(R"({"with": {"kappa": 0}})"), "criteria.with.kappa", {"in (0, 10]"});
+}

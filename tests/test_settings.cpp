@@ -118,6 +118,40 @@ TEST(MethodSpecs, ErrorsNameTheSpecAndTheKey) {
             std::string::npos);
 }
 
+// Time steps are written as fractions in specs and on the command line; only reals take them.
+TEST(SettingTable, RealsMayBeFractions) {
+  SolverOverrides o;
+  findSetting("h")->setText(o, "1/120");
+  EXPECT_DOUBLE_EQ(*o.dt, 1.0 / 120);
+  for (const char* bad : {"1/0", "1/", "/60", "1/60/2", "1/x", "1e308/1e-308"})
+    EXPECT_THROW(findSetting("h")->setText(o, bad), std::invalid_argument) << bad;
+  EXPECT_THROW(findSetting("h")->setText(o, "2/1"), std::invalid_argument);  // 2 s: beyond (0, 1]
+  EXPECT_THROW(findSetting("n")->setText(o, "8/2"), std::invalid_argument);  // integers are whole numbers
+  const auto grid = expandMethodSpec("a1:h=1/60|1/120");
+  ASSERT_EQ(grid.size(), 2u);
+  EXPECT_EQ(grid[1].text, "a1:h=1/120");
+  EXPECT_DOUBLE_EQ(resolve(grid[1].overrides).dt, 1.0 / 120);
+}
+
+// Bullet is a method like the algorithms: the same parser, value lists and errors, with the
+// settings the peer maps.
+TEST(MethodSpecs, TheBulletPeerTakesItsOwnSettings) {
+  const auto specs = parseMethodSpecs("bullet:it=10|20:h=1/120,a2:m=4");
+  ASSERT_EQ(specs.size(), 3u);
+  EXPECT_EQ(specs[0].peer, "bullet");
+  EXPECT_EQ(specs[0].text, "bullet:it=10:h=1/120");
+  EXPECT_FALSE(specs[0].overrides.algorithm);
+  EXPECT_EQ(*specs[1].overrides.iterations, 20);
+  EXPECT_DOUBLE_EQ(*specs[1].overrides.dt, 1.0 / 120);
+  EXPECT_EQ(specs[2].peer, "");
+  EXPECT_EQ(expandMethodSpec("bullet:gyro=none")[0].overrides.gyroscopic.value(), "none");
+  EXPECT_NE(errorOf("bullet:kappa=0.9").find("the Bullet peer takes h, it and gyro; kappa"), std::string::npos)
+      << errorOf("bullet:kappa=0.9");
+  EXPECT_NE(errorOf("bullet:frob=1").find("unknown key \"frob\" (keys: h, it, gyro)"), std::string::npos);
+  EXPECT_NE(errorOf("a5:it=4").find("unknown key \"it\""), std::string::npos);  // "it" is Bullet's word
+  EXPECT_NE(errorOf("ode").find("or the peer bullet"), std::string::npos);
+}
+
 TEST(Presets, HavoksThreeStiffnesses) {
   SolverOverrides o;
   o.algorithm = Algorithm::A4;

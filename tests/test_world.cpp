@@ -1,4 +1,5 @@
 // The pipeline against closed forms and conservation laws, for every algorithm that steps it.
+#include "physics/failure.h"
 #include "physics/scene_file.h"
 #include "physics/world.h"
 
@@ -176,6 +177,24 @@ TEST_P(EveryAlgorithm, GyroscopicTermFlipsTheIntermediateAxis) {
       EXPECT_GT(dE, 0);
     }
   }
+}
+
+// Divergence is energy grown beyond 100 times the energy in play at the start; without gravity
+// that is the kinetic energy, so a body spinning in space whose energy drifts by round-off (or a
+// few per cent) has not diverged, and one whose energy grew a thousandfold has.
+TEST(FailureWatch, DivergenceWithoutGravityIsMeasuredAgainstTheKineticEnergy) {
+  const Scene s = sceneFrom(R"({"gravity": [0, 0, 0], "bodies": [{"name": "handle", "mass": 1,
+      "shape": {"type": "box", "half_extents": [0.05, 0.2, 0.4]}, "angular_velocity": [0.01, 10, 0]}]})");
+  FailureWatch watch(s.model, s.initial);
+  State st = s.initial;
+  st.time = 0.1;
+  st.bodies[0].w *= 1.05;  // 10 % more energy
+  watch.observe(st);
+  EXPECT_LT(watch.report().divergeTime, 0) << watch.report().verdict();
+  st.time = 0.2;
+  st.bodies[0].w *= 40;  // 1600 times the energy
+  watch.observe(st);
+  EXPECT_EQ(watch.report().divergeTime, 0.2);
 }
 
 // Planes: a ball and a box dropped onto a static plane (one tilted, one offset) come to rest on

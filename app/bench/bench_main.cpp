@@ -15,7 +15,8 @@
 // What the speed buys is measured the same way for both engines, with our own definitions:
 // displacement from the start (after 1 s and at the end), the fastest body, the joints' anchor
 // separation and how far joint angles are beyond their limits (physics/constraints/joints.h).
-#include "app/bench/bullet_peer.h"
+#include "lab/bullet_peer.h"
+#include "lab/provenance.h"
 #include "app/common.h"
 #include "physics/constraints/joints.h"
 #include "physics/scene_file.h"
@@ -30,9 +31,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -41,15 +40,20 @@
 #include <unistd.h>
 #include <vector>
 
-#ifndef SUBSTEP_SOURCE_DIR
-#define SUBSTEP_SOURCE_DIR "."
-#endif
 #ifndef SUBSTEP_BUILD_TYPE
 #define SUBSTEP_BUILD_TYPE "unknown"
 #endif
 
 namespace substep::bench {
 namespace {
+
+using lab::BulletPeer;
+using lab::bulletUnsupported;
+using lab::bulletVersion;
+using lab::cpuModel;
+using lab::loadAverage;
+using lab::sourceState;
+using lab::utcNow;
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
@@ -160,16 +164,10 @@ void measureEnd(Run& r, const Scene& scene, PoseOf poseOf, VelocityOf velocityOf
   for (const Joint& j : model.joints) {
     const Pose A = poseOf(static_cast<size_t>(j.bodyA)), B = poseOf(static_cast<size_t>(j.bodyB));
     r.jointError = std::max(r.jointError, jointError(j, A, B));
-    if (j.type == JointType::Hinge && j.hasLimits) {
-      const double t = hingeAngle(j, A, B);
-      r.hingeExcess = std::max({r.hingeExcess, j.lower - t, t - j.upper});
-    } else if (j.type == JointType::ConeTwist) {
-      r.swingExcess = std::max(r.swingExcess, swingAngle(j, A, B) - j.swing);
-      if (j.hasLimits) {
-        const double t = twistAngle(j, A, B);
-        r.twistExcess = std::max({r.twistExcess, j.lower - t, t - j.upper});
-      }
-    }
+    const LimitExcess e = jointLimitExcess(j, A, B);
+    r.hingeExcess = std::max(r.hingeExcess, e.hinge);
+    r.swingExcess = std::max(r.swingExcess, e.swing);
+    r.twistExcess = std::max(r.twistExcess, e.twist);
   }
   r.limitExcess = std::max({r.hingeExcess, r.swingExcess, r.twistExcess});
 }
@@ -261,28 +259,6 @@ Run medianRun(std::vector<Run> runs) {
   return a;  // contacts and displacement: the same in every repeat when `repeatable`
 }
 
-std::string scenePath(const std::string& name) {
-  if (name.find('/') != std::string::npos || (name.size() > 5 && name.substr(name.size() - 5) == ".json")) return name;
-  return app::assetsDir() + "/scenes/" + name + ".json";
-}
-
-std::string utcNow() {
-  const std::time_t t = std::time(nullptr);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
-  return buf;
-}
-
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) {
-      const auto colon = line.find(':');
-      if (colon != std::string::npos) return line.substr(line.find_first_not_of(' ', colon + 1));
-    }
-  return "unknown CPU";
-}
 
 std::string fmt(const char* f, double v) {
   char buf[64];
@@ -498,35 +474,6 @@ void writeJson(const std::string& path, const nlohmann::json& doc) {
 
 // --- main -------------------------------------------------------------------------------------
 
-// /proc/loadavg's 1, 5 and 15 minute load averages, e.g. "1.95 1.78 1.93" ("unknown" elsewhere).
-std::string loadAverage() {
-  std::ifstream in("/proc/loadavg");
-  std::string a, b, c;
-  if (!(in >> a >> b >> c)) return "unknown";
-  return a + " " + b + " " + c;
-}
-
-// The source tree the benchmark was built from, as git sees it now: the commit, and how many
-// files under physics/ differ from it (the timings depend on them). "unknown" without git.
-std::string sourceState() {
-  const std::string git = std::string("git -C '") + SUBSTEP_SOURCE_DIR + "' ";
-  auto run = [](const std::string& cmd) {
-    std::string out;
-    if (FILE* p = popen((cmd + " 2>/dev/null").c_str(), "r")) {
-      char buf[256];
-      while (std::fgets(buf, sizeof buf, p)) out += buf;
-      if (pclose(p) != 0) return std::string();
-    }
-    return out;
-  };
-  std::string commit = run(git + "rev-parse --short HEAD");
-  if (commit.empty()) return "unknown";
-  commit.erase(commit.find_last_not_of("\n") + 1);
-  const std::string changed = run(git + "status --porcelain -- physics");
-  const long files = std::count(changed.begin(), changed.end(), '\n');
-  return commit + (files ? " + uncommitted changes in " + std::to_string(files) + " file(s) under physics/" : "");
-}
-
 struct Options {
   int steps = 300;
   int repeat = 5;
@@ -562,7 +509,7 @@ int bench(const Options& opt) {
   std::vector<std::string> skipped;  // scenes without a Bullet peer, and why
   scenes.reserve(opt.scenes.size());  // results point at their scene's model
   for (const std::string& name : opt.scenes) {
-    const std::string path = scenePath(name);
+    const std::string path = app::scenePath(name);
     try {
       scenes.push_back(loadScene(path));
     } catch (const SceneError& e) {

@@ -26,10 +26,14 @@ Mat3 frame(const Pose& P, const Vec3& axis, const Vec3& ref) {
 
 }  // namespace
 
+Vec3 fixedJointTurn(const Joint& j, const Pose& A, const Pose& B) {
+  const Mat3 err = frame(A, j.localAxisA, j.localRefA) * frame(B, j.localAxisB, j.localRefB).transpose();
+  return rotationVector(Quat(err));
+}
+
 void formulateFixed(const Joint& j, const Pose& A, const Pose& B, double h, Row* rows, bool jacobianOnly) {
   pointRows(j, A, B, h, rows, jacobianOnly);
-  const Mat3 err = frame(A, j.localAxisA, j.localRefA) * frame(B, j.localAxisB, j.localRefB).transpose();
-  const Vec3 d = rotationVector(Quat(err));
+  const Vec3 d = fixedJointTurn(j, A, B);
   for (int i = 0; i < 3; ++i) {
     angleRow(rows[3 + i], j.bodyA, j.bodyB, A, B, Vec3::Unit(i));
     if (jacobianOnly) continue;

@@ -2,6 +2,7 @@
 
 #include "physics/constraints/ball.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace substep {
@@ -55,6 +56,29 @@ double jointError(const Joint& j, const Pose& A, const Pose& B) {
     case JointType::Motor: return 0;
     default: return ballError(j, A, B).norm();
   }
+}
+
+double jointAngularError(const Joint& j, const Pose& A, const Pose& B) {
+  switch (j.type) {
+    case JointType::Hinge: return swingAngle(j, A, B);  // the angle between the two axes, as a cone's swing
+    case JointType::Fixed: return fixedJointTurn(j, A, B).norm();
+    default: return 0;
+  }
+}
+
+LimitExcess jointLimitExcess(const Joint& j, const Pose& A, const Pose& B) {
+  LimitExcess e;
+  if (j.type == JointType::Hinge && j.hasLimits) {
+    const double t = hingeAngle(j, A, B);
+    e.hinge = std::max({0.0, j.lower - t, t - j.upper});
+  } else if (j.type == JointType::ConeTwist) {
+    e.swing = std::max(0.0, swingAngle(j, A, B) - j.swing);
+    if (j.hasLimits) {
+      const double t = twistAngle(j, A, B);
+      e.twist = std::max({0.0, j.lower - t, t - j.upper});
+    }
+  }
+  return e;
 }
 
 }  // namespace substep

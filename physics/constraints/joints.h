@@ -5,6 +5,8 @@
 #include "physics/constraints/row.h"
 #include "physics/model.h"
 
+#include <algorithm>
+
 namespace substep {
 
 // A joint's rows in groups. A 'stable' part has unbounded rows and is block-solved as one small
@@ -36,6 +38,20 @@ void formulateJoint(const Joint& j, const Pose& A, const Pose& B, double h, Row*
 // error; a motor: 0).
 double jointError(const Joint& j, const Pose& A, const Pose& B);
 
+// How far a joint's angular part is from holding [rad]: a hinge's axes apart, a fixed joint's
+// relative turn from its initial one; 0 for kinds that hold no angle (ball, spring, motor) and for
+// cone-twists (their angles are limits, measured by jointLimitExcess).
+double jointAngularError(const Joint& j, const Pose& A, const Pose& B);
+
+// How far a joint's angles are beyond its limits [rad], by kind of limit; 0 within them.
+struct LimitExcess {
+  double hinge = 0;  // hinge angle beyond [lower, upper]
+  double swing = 0;  // cone-twist: swing beyond the cone's half angle
+  double twist = 0;  // cone-twist: twist beyond [lower, upper]
+  double max() const { return std::max({hinge, swing, twist}); }
+};
+LimitExcess jointLimitExcess(const Joint& j, const Pose& A, const Pose& B);
+
 // Per-kind formulations (same contract as formulateJoint).
 void formulateBall(const Joint& j, const Pose& A, const Pose& B, double h, Row* rows, bool jacobianOnly);
 void formulateHinge(const Joint& j, const Pose& A, const Pose& B, double h, Row* rows, bool jacobianOnly);
@@ -48,5 +64,7 @@ void formulateMotor(const Joint& j, const Pose& A, const Pose& B, double h, Row*
 double hingeAngle(const Joint& j, const Pose& A, const Pose& B);      // B about the axis, from A's reference
 double swingAngle(const Joint& j, const Pose& A, const Pose& B);      // between the two twist axes
 double twistAngle(const Joint& j, const Pose& A, const Pose& B);      // about the mean twist axis
+// A fixed joint: the rotation vector that brings B's frame back onto A's (zero when it holds).
+Vec3 fixedJointTurn(const Joint& j, const Pose& A, const Pose& B);
 
 }  // namespace substep

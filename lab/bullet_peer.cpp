@@ -1,12 +1,13 @@
-#include "app/bench/bullet_peer.h"
+#include "lab/bullet_peer.h"
 
 #include <btBulletDynamicsCommon.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <vector>
 
-namespace substep::bench {
+namespace substep::lab {
 
 namespace {
 
@@ -55,6 +56,16 @@ void jointFrames(const Joint& j, int axisColumn, double mid, btTransform& frameA
     frameA = jointFrame(j.localAnchorA, refA, axA.cross(refA));
     frameB = jointFrame(j.localAnchorB, refB, axB.cross(refB));
   }
+}
+
+// A pair's friction and restitution as ours combine them (physics/collision/manifold.cpp): the
+// geometric mean of the frictions, the larger restitution. Bullet's own are products, which would
+// make a ramp's 0.4 against a box's 0.4 a friction of 0.16.
+btScalar combinedFriction(const btCollisionObject* a, const btCollisionObject* b) {
+  return btSqrt(a->getFriction() * b->getFriction());
+}
+btScalar combinedRestitution(const btCollisionObject* a, const btCollisionObject* b) {
+  return btMax(a->getRestitution(), b->getRestitution());
 }
 
 std::unique_ptr<btCollisionShape> makeShape(const Shape& s) {
@@ -118,8 +129,10 @@ struct BulletPeer::Impl {
   }
 };
 
-BulletPeer::BulletPeer(const Model& model, const State& initial, double dt, int iterations)
+BulletPeer::BulletPeer(const Model& model, const State& initial, double dt, int iterations, bool gyroscopic)
     : impl_(std::make_unique<Impl>()) {
+  gCalculateCombinedFrictionCallback = combinedFriction;
+  gCalculateCombinedRestitutionCallback = combinedRestitution;
   const std::string why = bulletUnsupported(model);
   if (!why.empty()) throw std::invalid_argument("Bullet peer: " + why);
   if (initial.bodies.size() != model.bodies.size()) throw std::invalid_argument("Bullet peer: state and model differ");
@@ -152,6 +165,7 @@ BulletPeer::BulletPeer(const Model& model, const State& initial, double dt, int 
       body->setAngularVelocity(bt(s.worldAngularVelocity()));
     }
     body->setActivationState(DISABLE_DEACTIVATION);  // no sleeping, for every body
+    body->setFlags(gyroscopic ? BT_ENABLE_GYROSCOPIC_FORCE_IMPLICIT_BODY : 0);
     m.world.addRigidBody(body.get());
     m.shapes.push_back(std::move(shape));
     m.motionStates.push_back(std::move(motion));
@@ -227,10 +241,40 @@ Pose BulletPeer::pose(size_t body) const {
 
 Vec3 BulletPeer::velocity(size_t body) const { return fromBt(impl_->bodies.at(body)->getLinearVelocity()); }
 
+Vec3 BulletPeer::angularVelocity(size_t body) const { return fromBt(impl_->bodies.at(body)->getAngularVelocity()); }
+
+void BulletPeer::state(State& out) const {
+  out.bodies.resize(impl_->bodies.size());
+  for (size_t i = 0; i < impl_->bodies.size(); ++i) {
+    BodyState& b = out.bodies[i];
+    const Pose p = pose(i);
+    b.x = p.p;
+    b.q = p.q;
+    b.v = velocity(i);
+    b.w = p.q.conjugate() * angularVelocity(i);
+  }
+}
+
+BulletPeer::Penetration BulletPeer::penetration() const {
+  Penetration p;
+  btCollisionDispatcher& d = impl_->dispatcher;
+  for (int i = 0; i < d.getNumManifolds(); ++i) {
+    const btPersistentManifold* m = d.getManifoldByIndexInternal(i);
+    for (int k = 0; k < m->getNumContacts(); ++k) {
+      const double depth = -double(m->getContactPoint(k).getDistance());
+      if (depth <= 0) continue;
+      p.deepest = std::max(p.deepest, depth);
+      p.sumSquares += depth * depth;
+      ++p.points;
+    }
+  }
+  return p;
+}
+
 bool BulletPeer::finite() const {
   for (size_t i = 0; i < impl_->bodies.size(); ++i)
     if (!position(i).allFinite()) return false;
   return true;
 }
 
-}  // namespace substep::bench
+}  // namespace substep::lab

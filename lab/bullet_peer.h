@@ -1,11 +1,13 @@
-// The Bullet peer of substep-bench: a scene rebuilt in Bullet 3 (btDiscreteDynamicsWorld,
-// sequential impulse solver), started from the same coordinates as our World, so both engines
-// step the very same initial state. Bullet's headers stay inside bullet_peer.cpp.
+// The Bullet peer of the lab and substep-bench: a scene rebuilt in Bullet 3
+// (btDiscreteDynamicsWorld, sequential impulse solver), started from the same coordinates as our
+// World, so both engines step the very same initial state. Bullet's headers stay inside
+// bullet_peer.cpp. The lab names it as a method, `bullet:it=10` (physics/settings.h).
 //
 // Shapes: sphere, box, capsule and cylinder (axis along local Y in both engines), static planes.
 // Joints: ball -> btPoint2PointConstraint, hinge (limits) -> btHingeConstraint, cone-twist ->
-// btConeTwistConstraint, fixed -> btFixedConstraint. docs/benchmarks.md has the mapping and where
-// it is only approximate.
+// btConeTwistConstraint, fixed -> btFixedConstraint. Friction and restitution of a pair combine
+// as ours do (geometric mean, maximum). docs/benchmarks.md has the mapping and where it is only
+// approximate.
 #pragma once
 
 #include "physics/math.h"
@@ -15,7 +17,7 @@
 #include <memory>
 #include <string>
 
-namespace substep::bench {
+namespace substep::lab {
 
 // Why Bullet cannot build the model (empty if it can): convex and triangle meshes, springs,
 // motors and hinge motors are not mapped.
@@ -31,8 +33,9 @@ class BulletPeer {
   // axes); static bodies have mass 0. Gravity from the model. Every joint of the model, with
   // collisions between its two bodies off unless Joint::collide. `iterations` solver iterations,
   // Bullet's defaults otherwise; no body ever sleeps (DISABLE_DEACTIVATION on every body).
-  // Throws std::invalid_argument for unsupported models.
-  BulletPeer(const Model& model, const State& initial, double dt, int iterations);
+  // Throws std::invalid_argument for unsupported models. `gyroscopic` is Bullet's own term
+  // (BT_ENABLE_GYROSCOPIC_FORCE_IMPLICIT_BODY, on by default in Bullet; off: none, as the report).
+  BulletPeer(const Model& model, const State& initial, double dt, int iterations, bool gyroscopic = true);
   ~BulletPeer();
   BulletPeer(const BulletPeer&) = delete;
   BulletPeer& operator=(const BulletPeer&) = delete;
@@ -44,6 +47,16 @@ class BulletPeer {
   Vec3 position(size_t body) const;  // centre of mass of the model's body `body` [m]
   Pose pose(size_t body) const;      // centre of mass and body-to-world rotation
   Vec3 velocity(size_t body) const;  // linear velocity [m/s]
+  Vec3 angularVelocity(size_t body) const;  // world frame [rad/s]
+  // The state of every body, as our State holds it (angular velocity in the body frame).
+  void state(State& out) const;
+  // Depths of the touching points in all persistent manifolds after the last step: the deepest
+  // and the sum of squares and count over the penetrating points [m], by Bullet's distances.
+  struct Penetration {
+    double deepest = 0, sumSquares = 0;
+    int points = 0;
+  };
+  Penetration penetration() const;
   bool finite() const;              // every body's position is finite
 
  private:
@@ -51,4 +64,4 @@ class BulletPeer {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace substep::bench
+}  // namespace substep::lab

@@ -1,0 +1,294 @@
+// substep sweep: the cross product of scenes x methods x time steps, one JSON record per run
+// (lab/record.h) appended to a JSONL file; resumable, shardable, mergeable (docs/lab.md).
+#include "app/commands.h"
+#include "app/common.h"
+#include "lab/record.h"
+#include "lab/sweep.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <set>
+
+namespace substep::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct SweepOptions {
+  std::string spec;
+  std::vector<std::string> scenes, methods, dts;
+  std::optional<int> repeat;
+  std::optional<double> seconds;
+  std::string output;
+  std::string shard;
+  bool quiet = false;
+  SceneLimits limits;
+};
+
+struct MergeOptions {
+  std::vector<std::string> inputs;
+  std::string output;
+  bool allowGaps = false;
+  bool quiet = false;
+};
+
+// The output so far: its keys, and a last line cut short removed (rewritten atomically).
+std::set<std::string> resume(const std::string& output) {
+  std::set<std::string> keys;
+  std::error_code ec;
+  if (!fs::exists(output, ec)) return keys;
+  if (!fs::is_regular_file(output, ec)) throw UsageError("-o " + output + ": not a regular file");
+  bool truncated = false;
+  std::vector<json> rows;
+  try {
+    rows = lab::readRows(output, &truncated);
+  } catch (const std::runtime_error& e) {
+    throw UsageError(std::string("-o: ") + e.what() + "; give a new file, or the output of an earlier sweep to resume it");
+  }
+  if (truncated) {
+    AtomicFile f(output);
+    for (const json& r : rows) f.out() << r.dump() << '\n';
+    f.commit();
+  }
+  for (const json& r : rows) keys.insert(r["key"].get<std::string>());
+  return keys;
+}
+
+// One line, in one write(2) to a file opened for appending: a sweep stopped at any moment leaves
+// whole lines behind (or a last one cut short, which resuming removes).
+class RowWriter {
+ public:
+  explicit RowWriter(const std::string& path) : path_(path) {
+    checkWritable(path, "-o " + path);
+    fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw UsageError("-o " + path + ": cannot open: " + std::strerror(errno));
+  }
+  ~RowWriter() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  void write(const json& row) {
+    const std::string line = row.dump() + "\n";
+    size_t done = 0;
+    while (done < line.size()) {
+      const ssize_t n = ::write(fd_, line.data() + done, line.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) throw std::runtime_error(path_ + ": write failed: " + std::strerror(errno));
+      done += static_cast<size_t>(n);
+    }
+  }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
+std::string shortFigure(const json& row) {
+  if (row["refused"].get<bool>()) return "refused: " + row["stopped"].get<std::string>();
+  std::string s;
+  if (row["error"]["value"].is_number())
+    s = row["error"]["label"].get<std::string>() + " " +
+        lab::formatMetric(row["error"]["metric"].get<std::string>(), row["error"]["value"].get<double>());
+  if (row["diverged"].get<bool>()) s += (s.empty() ? "" : "; ") + std::string("DIVERGED");
+  if (row.contains("verdict")) s += (s.empty() ? "" : "; ") + row["verdict"]["result"].get<std::string>();
+  return s;
+}
+
+int runSweep(const SweepOptions& o) {
+  lab::SweepSpec spec;
+  if (!o.spec.empty()) {
+    try {
+      spec = lab::readSweepSpec(o.spec);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  }
+  if (!o.scenes.empty()) spec.scenes = o.scenes;
+  if (!o.methods.empty()) spec.methods = o.methods;
+  if (!o.dts.empty()) {
+    spec.dts.clear();
+    for (const std::string& d : o.dts) try {
+        spec.dts.push_back(lab::parseStep(d));
+      } catch (const std::invalid_argument& e) {
+        throw UsageError("--dt: " + std::string(e.what()));
+      }
+  }
+  if (o.repeat) spec.repeat = *o.repeat;
+  if (o.seconds) spec.seconds = o.seconds;
+  if (spec.scenes.empty()) throw UsageError("no scenes: give SPEC.json or --scenes (e.g. --scenes chain,pyramid)");
+  if (spec.methods.empty()) throw UsageError("no methods: give SPEC.json or --methods (e.g. --methods a2:m=4,a5:n=4)");
+  for (const std::string& m : spec.methods) try {
+      lab::parseMethods(m);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--methods: ") + e.what());
+    }
+  const lab::Shard shard = [&] {
+    try {
+      return o.shard.empty() ? lab::Shard{} : lab::parseShard(o.shard);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError("--shard: " + std::string(e.what()));
+    }
+  }();
+
+  // Everything is loaded and checked before the first run: scenes, settings, references.
+  std::vector<Scene> scenes;
+  for (const std::string& name : spec.scenes) {
+    try {
+      scenes.push_back(lab::loadSweepScene(scenePath(name), spec.reference));
+    } catch (const SceneError& e) {
+      throw UsageError(std::string(e.what()));
+    }
+  }
+  lab::SweepPlan plan;
+  try {
+    plan = lab::planSweep(spec, std::move(scenes));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  std::vector<std::optional<lab::PreparedReference>> references(plan.scenes.size());
+  std::set<std::string> done = resume(o.output);
+  RowWriter writer(o.output);
+
+  std::vector<size_t> todo;
+  for (size_t k = 0; k < plan.runs.size(); ++k)
+    if (shard.has(static_cast<long long>(k)) && !done.count(plan.runs[k].key)) todo.push_back(k);
+  const size_t mine = [&] {
+    size_t n = 0;
+    for (size_t k = 0; k < plan.runs.size(); ++k) n += shard.has(static_cast<long long>(k));
+    return n;
+  }();
+  if (!o.quiet) {
+    size_t methods = 0;
+    for (const std::string& m : spec.methods) methods += lab::parseMethods(m).size();
+    const size_t steps = std::max<size_t>(1, spec.dts.size());
+    auto count = [](size_t n, const char* what) { return std::to_string(n) + " " + what + (n == 1 ? "" : "s"); };
+    std::cout << "sweep     " << count(plan.runs.size(), "run") << " (" << count(plan.scenes.size(), "scene") << " x "
+              << count(methods, "method") << " x " << count(steps, "time step") << "), plan " << plan.id;
+    if (shard.count > 1) std::cout << "; shard " << shard.index << "/" << shard.count << ": " << mine << " runs";
+    std::cout << "; " << (mine - todo.size()) << " already in " << o.output << ", " << todo.size() << " to run\n";
+  }
+  InterruptGuard interrupt;
+  Progress progress("sweep", static_cast<long long>(todo.size()), !o.quiet);
+  long long n = 0;
+  for (size_t k : todo) {
+    if (InterruptGuard::interrupted()) throw Interrupted();
+    const lab::PlannedRun& run = plan.runs[k];
+    const Scene& scene = plan.scenes[run.scene];
+    std::optional<lab::PreparedReference>& ref = references[run.scene];
+    if (!ref && scene.criteria && scene.criteria->reference) {
+      try {
+        ref = lab::prepareReference(scene, *scene.criteria->reference, run.seconds);
+      } catch (const std::exception& e) {  // a converged run that is not, a pendulum that cannot swing
+        throw UsageError(scene.file + ": criteria.reference: " + e.what());
+      }
+    }
+    lab::RunSetup setup;
+    setup.seconds = run.seconds;
+    setup.repeat = spec.repeat;
+    setup.dt = run.dt;
+    setup.reference = ref ? &*ref : nullptr;
+    setup.stop = [](const lab::Metrics&, double) { return InterruptGuard::interrupted() ? std::string("interrupted") : ""; };
+    const lab::RunResult result = lab::runMethod(scene, run.method, setup);
+    if (InterruptGuard::interrupted()) throw Interrupted();  // the run was cut: no row for it
+    const json row = lab::recordJson(scene, result, run.seconds, spec.repeat,
+                                     lab::SweepPlace{plan.id, static_cast<long long>(k), static_cast<long long>(plan.runs.size())});
+    writer.write(row);
+    ++n;
+    if (!o.quiet) {
+      progress.clear();
+      char cost[64];
+      std::snprintf(cost, sizeof cost, "%.4g ms/step", result.cost.msPerStep);
+      std::cout << "[" << n << "/" << todo.size() << "] " << lab::sceneName(scene) << "  " << run.method.text << "  h="
+                << lab::stepText(result.settings.dt) << ": " << (result.refused ? "-" : cost) << ", " << shortFigure(row)
+                << "\n" << std::flush;
+    }
+    progress.update(n);
+  }
+  progress.finish();
+  if (!o.quiet) std::cout << "wrote     " << o.output << " (" << n << " new rows)\n";
+  return 0;
+}
+
+int runMerge(const MergeOptions& o) {
+  std::vector<std::vector<json>> files;
+  for (const std::string& in : o.inputs) {
+    if (samePath(in, o.output)) throw UsageError(in + " is also the output; give the merged file another name");
+    if (const std::string why = checkInputFile(in, size_t(1) << 34); !why.empty()) throw UsageError(in + ": " + why);
+    bool truncated = false;
+    try {
+      files.push_back(lab::readRows(in, &truncated));
+    } catch (const std::runtime_error& e) {
+      throw UsageError(e.what());
+    }
+    if (truncated && !o.quiet) std::cerr << "substep sweep merge: " << in << ": its last line is cut short; left out\n";
+  }
+  const lab::MergeResult m = lab::mergeRows(files);
+  for (const std::string& d : m.duplicates)
+    std::cerr << "substep sweep merge: duplicate run (kept the first): " << d << "\n";
+  for (const std::string& g : m.gaps) std::cerr << "substep sweep merge: gap: " << g << "\n";
+  if (!m.gaps.empty() && !o.allowGaps) {
+    std::cerr << "substep sweep merge: not written: runs are missing (run the missing shards, or --allow-gaps)\n";
+    return kExitFailure;
+  }
+  AtomicFile out(o.output);
+  for (const json& r : m.rows) out.out() << r.dump() << '\n';
+  out.commit();
+  if (!o.quiet)
+    std::cout << "merged    " << m.rows.size() << " rows from " << o.inputs.size() << " files into " << o.output << " ("
+              << m.duplicates.size() << " duplicates, " << m.gaps.size() << " plans with gaps)\n";
+  return 0;
+}
+
+}  // namespace
+
+void addSweepCommand(CLI::App& app, std::function<int()>& action) {
+  auto opt = std::make_shared<SweepOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "sweep", "Run scenes x methods x time steps and write one JSON record per run (JSONL); resumable and shardable");
+  cmd->footer(
+      "\nMethods are the --compare spec language with value lists (a grid): a2:m=4|10, a5:n=1|2|4|8:m=1, "
+      "bullet:it=10.\nSPEC.json: {\"scenes\": [...], \"methods\": [...], \"dt\": [\"1/60\"], \"repeat\": 3, \"seconds\": "
+      "2, \"reference\": {...}};\nflags replace its fields. Runs already in OUT are skipped, so a stopped sweep resumes. "
+      "See docs/lab.md.");
+  cmd->add_option("spec", opt->spec, "A sweep spec (JSON); optional when --scenes and --methods are given");
+  cmd->add_option("--scenes", opt->scenes, "Scenes, comma-separated: names in assets/scenes (chain, atlas/card_house) or .json paths")
+      ->delimiter(',');
+  cmd->add_option("--methods", opt->methods, "Methods, comma-separated specs, e.g. a2:m=4,a5:n=1|2|4:m=1,bullet:it=10")
+      ->delimiter(',');
+  cmd->add_option("--dt", opt->dts, "Time steps, comma-separated (1/60,1/120): every method at each, unless it names its h")
+      ->delimiter(',');
+  cmd->add_option("--repeat", opt->repeat, "Timed runs of each run; the cost is their median (default 1)")->check(CLI::Range(1, 1000));
+  cmd->add_option("--seconds", opt->seconds, "Simulated time of each run [s] (default: each scene's criteria, else 3)")
+      ->check(finiteIn(1e-3, 3600));
+  cmd->add_option("-o,--output", opt->output, "The JSONL file the records are appended to")->required();
+  cmd->add_option("--shard", opt->shard, "i/N: run only every N-th run of the plan, starting at the i-th (1 <= i <= N)");
+  cmd->add_flag("--quiet,-q", opt->quiet, "Print nothing but errors (no progress bar either)");
+  addMaxBodies(*cmd, opt->limits);
+
+  auto merge = std::make_shared<MergeOptions>();
+  CLI::App* m = cmd->add_subcommand("merge", "Merge sweep outputs (shards) into one file, checking for gaps and duplicates");
+  m->footer("\nRows are told apart by their key (scene, method, h, seconds, reference); a run found twice is kept once.\n"
+            "Each row names its sweep's plan and its index there: a plan with runs missing is named and nothing is\n"
+            "written (exit status 1) unless --allow-gaps. See docs/lab.md.");
+  m->add_option("inputs", merge->inputs, "The JSONL files to merge")->required();
+  m->add_option("-o,--output", merge->output, "The merged JSONL file (written atomically)")->required();
+  m->add_flag("--allow-gaps", merge->allowGaps, "Write the merged file even when runs of a plan are missing");
+  m->add_flag("--quiet,-q", merge->quiet, "Print nothing but errors");
+  m->callback([merge, &action] { action = [merge] { return runMerge(*merge); }; });
+
+  cmd->callback([opt, cmd, m, &action] {
+    if (m->parsed()) return;
+    if (opt->output.empty()) throw CLI::RequiredError("--output");
+    action = [opt] { return runSweep(*opt); };
+  });
+  // -o is required for a sweep; merge has its own.
+  cmd->get_option("--output")->required(false);
+}
+
+}  // namespace substep::app

@@ -1,0 +1,43 @@
+// A run as one JSON record: one line of a sweep's JSONL output, and the atlas's cells. Every
+// setting, every metric, the cost, the verdict and the source commit (docs/lab.md, "Records").
+#pragma once
+
+#include "lab/runner.h"
+#include "lab/verdict.h"
+
+#include <nlohmann/json.hpp>
+
+#include <optional>
+#include <string>
+
+namespace substep::lab {
+
+// The quantity a scene's charts and advice call "error": the scene's criteria "error", else the
+// first quantity its pass criteria bound, else the trajectory error when a reference gives one
+// (the reference's own error for torque-free rotation), else the largest joint error when the
+// scene has joints, else the largest penetration.
+std::string errorMetric(const Scene& scene);
+
+// Where a run sits in a sweep: which plan (a hash of every run's key, in order), its index, and
+// how many runs the plan has. Merging checks rows against it.
+struct SweepPlace {
+  std::string plan;
+  long long index = 0, runs = 0;
+};
+
+// What identifies a run: the scene, the method, the time step, the simulated time, and the
+// reference it is measured against when the scene states one. A sweep skips runs whose key is
+// already in its output.
+std::string runKey(const Scene& scene, const std::string& method, double dt, double seconds);
+
+// The scene's name in records: the file's stem ("chain", "tall_stack_30").
+std::string sceneName(const Scene& scene);
+
+nlohmann::json recordJson(const Scene& scene, const RunResult& run, double seconds, int repeat,
+                          const std::optional<SweepPlace>& place = std::nullopt);
+
+// The value of a criterion quantity in a record ("values" holds every one the run measured);
+// nullopt when absent or null.
+std::optional<double> recordValue(const nlohmann::json& row, const std::string& metric);
+
+}  // namespace substep::lab

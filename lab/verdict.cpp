@@ -1,0 +1,88 @@
+#include "lab/verdict.h"
+
+#include <cmath>
+
+namespace substep::lab {
+
+const char* resultName(Verdict::Result r) {
+  switch (r) {
+    case Verdict::Result::Pass: return "pass";
+    case Verdict::Result::Fail: return "fail";
+    case Verdict::Result::Refused: return "refused";
+    case Verdict::Result::NoCriteria: return "none";
+  }
+  return "?";
+}
+
+namespace {
+
+Check atMost(const std::string& name, std::optional<double> value, double bound) {
+  Check c;
+  if (!value) {
+    c.text = std::string(metricLabel(name)) + ": not measured in this run";
+    c.ratio = INFINITY;
+    return c;
+  }
+  c.ok = *value <= bound;
+  c.ratio = bound > 0 ? *value / bound : (*value > 0 ? INFINITY : 0);
+  c.text = std::string(metricLabel(name)) + " " + formatMetric(name, *value) + (c.ok ? " <= " : " > ") + formatMetric(name, bound);
+  return c;
+}
+
+}  // namespace
+
+Verdict judge(const Scene& scene, const RunResult& run) {
+  Verdict v;
+  if (run.refused) {
+    v.result = Verdict::Result::Refused;
+    v.figure = run.stopped;
+    return v;
+  }
+  if (!scene.criteria) return v;
+  const SceneCriteria& c = *scene.criteria;
+  const Metrics& m = run.metrics;
+  if (run.diverged) v.checks.push_back(Check{run.stopped.substr(0, run.stopped.find(':')), false, INFINITY});
+  for (const auto& [name, bound] : c.pass) v.checks.push_back(atMost(name, metricValue(m, name), bound));
+  if (c.moving) {
+    const double least = m.movingLeast.value_or(0);
+    Check k;
+    k.ok = least >= c.moving->atLeast;
+    k.ratio = least > 0 ? c.moving->atLeast / least : INFINITY;
+    k.text = "the sliding bodies moved at least " + formatLength(least) + (k.ok ? " >= " : " < ") + formatLength(c.moving->atLeast);
+    v.checks.push_back(k);
+  }
+  if (c.stayIn) {
+    const std::string& name = scene.model.bodies[static_cast<size_t>(c.stayIn->body)].name;
+    const bool in = m.stayedIn.value_or(false);
+    v.checks.push_back(Check{in ? name + " stayed inside its box" : name + " left its box (passed through)", in, in ? 0.0 : INFINITY});
+  }
+  if (c.turns) {
+    const double most = m.turnedMost.value_or(0);
+    Check k;
+    k.ok = most >= c.turns->atLeast;
+    k.ratio = most > 0 ? c.turns->atLeast / most : INFINITY;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "turned %.0f deg %s %.0f deg", most * 180 / M_PI, k.ok ? ">=" : "<", c.turns->atLeast * 180 / M_PI);
+    k.text = buf;
+    v.checks.push_back(k);
+  }
+  // A scene that states no check has no verdict, whatever became of the run.
+  if (c.pass.empty() && !c.moving && !c.stayIn && !c.turns) {
+    v.checks.clear();
+    return v;
+  }
+  v.result = Verdict::Result::Pass;
+  const Check* decisive = nullptr;
+  for (const Check& k : v.checks) {
+    if (!k.ok) {
+      v.result = Verdict::Result::Fail;
+      decisive = &k;
+      break;
+    }
+    if (!decisive || k.ratio > decisive->ratio) decisive = &k;
+  }
+  if (decisive) v.figure = decisive->text;
+  return v;
+}
+
+}  // namespace substep::lab

@@ -1,0 +1,534 @@
+// The lab library: closed forms and references, metrics of a run (the same for substep and the
+// Bullet peer), verdicts, records.
+#include "lab/advise.h"
+#include "lab/bullet_peer.h"
+#include "lab/chart.h"
+#include "lab/method.h"
+#include "lab/metrics.h"
+#include "lab/record.h"
+#include "lab/reference.h"
+#include "lab/runner.h"
+#include "lab/sweep.h"
+#include "lab/verdict.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+using namespace substep;
+using namespace substep::lab;
+
+namespace {
+
+const std::string kScenes = SUBSTEP_SOURCE_DIR "/assets/scenes";
+
+Scene sceneFrom(const std::string& json) { return parseScene(json, "t.json", "."); }
+
+Method method(const std::string& spec) {
+  const std::vector<Method> m = parseMethods(spec);
+  EXPECT_EQ(m.size(), 1u);
+  return m[0];
+}
+
+// A run with the scene's own reference prepared.
+RunResult runWithReference(const Scene& s, const std::string& spec, double seconds) {
+  const PreparedReference ref = prepareReference(s, *s.criteria->reference, seconds);
+  RunSetup setup;
+  setup.seconds = seconds;
+  setup.reference = &ref;
+  return runMethod(s, method(spec), setup);
+}
+
+constexpr double kPi = 3.14159265358979323846;
+
+}  // namespace
+
+// K and sn against tabulated values (Abramowitz and Stegun, tables 17.1 and 16.1), and the
+// identities sn(0) = 0, sn(K) = 1, and sn = sin when k = 0.
+TEST(ClosedForms, EllipticIntegralAndJacobiSine) {
+  EXPECT_NEAR(ellipticK(0), kPi / 2, 1e-15);
+  EXPECT_NEAR(ellipticK(std::sin(kPi / 4)), 1.854074677301372, 1e-13);  // K(m = 1/2)
+  EXPECT_NEAR(ellipticK(std::sin(kPi / 12)), 1.598142002112540, 1e-13);  // modular angle 15 degrees
+  EXPECT_THROW(ellipticK(1), std::invalid_argument);
+  for (double k : {0.0, 0.3, 0.7, 0.99}) {
+    EXPECT_NEAR(jacobiSn(0, k), 0, 1e-15) << k;
+    EXPECT_NEAR(jacobiSn(ellipticK(k), k), 1, 1e-12) << k;
+  }
+  EXPECT_NEAR(jacobiSn(0.7, 0), std::sin(0.7), 1e-15);
+  EXPECT_NEAR(jacobiSn(0.5, std::sqrt(0.5)), 0.4707504736556573, 1e-13);  // sn(0.5 | m = 0.5)
+}
+
+// The pendulum's closed form from the scene: amplitude, small-amplitude and elliptic periods.
+TEST(ClosedForms, PendulumPeriodFromTheScene) {
+  const Scene small = loadScene(kScenes + "/reference/pendulum_5deg.json");
+  const PendulumModel p = pendulumModel(small, *small.criteria->reference);
+  EXPECT_NEAR(p.amplitude, 5 * kPi / 180, 1e-9);
+  EXPECT_NEAR(p.smallPeriod(), 2 * kPi * std::sqrt(1 / 9.81) * (1 + 0.5e-6), 1e-8);  // point mass: sqrt(L/g)
+  EXPECT_NEAR(p.period(), 2.007021914 * (1 + 0.5e-6), 1e-8);  // the bob's given inertia 1e-6 lengthens it by 5e-7
+  EXPECT_NEAR(p.angleAt(0), p.amplitude, 1e-12);
+  EXPECT_NEAR(p.angleAt(p.period() / 4), 0, 1e-9);
+  EXPECT_NEAR(p.angleAt(p.period() / 2), -p.amplitude, 1e-9);
+  const Scene large = loadScene(kScenes + "/reference/pendulum_90deg.json");
+  EXPECT_NEAR(pendulumModel(large, *large.criteria->reference).period(), 2.367841947 * (1 + 0.5e-6), 1e-8);
+  const Scene bar = loadScene(kScenes + "/reference/physical_pendulum.json");
+  const PendulumModel b = pendulumModel(bar, *bar.criteria->reference);
+  EXPECT_NEAR(b.period(), 1.758364036, 1e-6);  // I about the end = m (L^2 + w^2)/12 + m (L/2)^2
+}
+
+// Acceptance: the period at 5 degrees under A1 at h = 1/240 is within 0.5 % of the closed form;
+// the other pendulums too, and the swing keeps its energy.
+TEST(References, PendulumPeriodsUnderA1) {
+  for (const char* file : {"pendulum_5deg", "pendulum_90deg", "physical_pendulum"}) {
+    const Scene s = loadScene(kScenes + "/reference/" + file + ".json");
+    const RunResult r = runWithReference(s, "a1:h=1/240", 5);
+    ASSERT_TRUE(r.finite) << file;
+    ASSERT_TRUE(r.metrics.referenceError) << file << ": " << r.metrics.referenceText;
+    std::printf("%-18s a1 h=1/240: %s, error %.4f %%, energy drift %.3f %%, trajectory error %.2f mm\n", file,
+                r.metrics.referenceText.c_str(), 100 * *r.metrics.referenceError, 100 * r.metrics.energyDrift.value_or(NAN),
+                1e3 * r.metrics.trajectoryError.value_or(NAN));
+    EXPECT_LT(*r.metrics.referenceError, 0.005) << file;
+    EXPECT_EQ(judge(s, r).result, Verdict::Result::Pass) << judge(s, r).figure;
+  }
+}
+
+// The measured period is the crossings' and fails when the swing is wrong: a run of half a
+// period has no period, and a pendulum stepped at a coarse h by A2 misses by more.
+TEST(References, PeriodMeasurement) {
+  std::vector<double> t, a;
+  for (int k = 0; k <= 1000; ++k) {
+    t.push_back(k * 0.01);
+    a.push_back(std::cos(2 * kPi * t.back() / 2.5 + 0.3));
+  }
+  EXPECT_NEAR(measuredPeriod(t, a), 2.5, 1e-4);
+  t.resize(100), a.resize(100);
+  EXPECT_TRUE(std::isnan(measuredPeriod(t, a)));
+}
+
+
+// Free fall has a closed form, and symplectic Euler's error against it is known exactly: after
+// time T at step h the position is off by g h T / 2 (h/n under sub-stepping). The metric must
+// say so, for substep and for the Bullet peer alike (Bullet's integrator is the same).
+TEST(References, FreeFallErrorIsHalfGHT) {
+  const Scene s = loadScene(kScenes + "/reference/free_fall.json");
+  const double T = 2, g = 9.81;
+  for (const char* spec : {"a2:h=1/60", "a2:h=1/120", "a5:n=4:h=1/60", "bullet:h=1/60"}) {
+    const RunResult r = runWithReference(s, spec, T);
+    ASSERT_TRUE(r.metrics.trajectoryError) << spec;
+    const double h = r.settings.dt / (std::string(spec).rfind("a5", 0) == 0 ? 4 : 1);
+    EXPECT_NEAR(*r.metrics.trajectoryError, 0.5 * g * h * T, std::string(spec) == "bullet:h=1/60" ? 2e-3 : 1e-9) << spec;
+    EXPECT_NEAR(*r.metrics.energyDrift, 0, 0.02) << spec;  // conservative: the drift is measured
+  }
+}
+
+// Torque-free rotation keeps each body's world angular momentum: exactly about a principal axis;
+// about the intermediate axis only with the gyroscopic term, whose flip the "turns" check sees.
+TEST(References, TorqueFreeInvariantsAndTheFlip) {
+  const Scene spin = sceneFrom(R"({"gravity": [0, 0, 0], "bodies": [{"name": "b", "mass": 1,
+      "shape": {"type": "box", "half_extents": [0.05, 0.2, 0.4]}, "angular_velocity": [0, 0, 7]}],
+      "criteria": {"conservative": true, "reference": {"type": "torque_free"}}})");
+  for (const char* spec : {"a1", "a5", "soft", "bullet"}) {
+    const RunResult r = runWithReference(spin, spec, 1);
+    const double round = std::string(spec) == "bullet" ? 1e-5 : 1e-9;  // Bullet computes in float
+    EXPECT_LT(*r.metrics.referenceError, round) << spec;
+    EXPECT_LT(*r.metrics.energyDrift, 2 * round) << spec;
+    EXPECT_LT(*r.metrics.angularMomentumDrift, round) << spec;  // a free scene: momentum is measured
+  }
+  const Scene dz = loadScene(kScenes + "/atlas/dzhanibekov.json");
+  const RunResult none = runWithReference(dz, "a5", 3), implicit = runWithReference(dz, "a5:gyro=implicit", 3);
+  std::printf("dzhanibekov under a5: gyroscopic none turns %.0f deg, L drift %.1f %%; implicit turns %.0f deg, L drift %.1f %%, "
+              "energy drift %+.1f %%\n", *none.metrics.turnedMost * 180 / kPi, 100 * *none.metrics.referenceError,
+              *implicit.metrics.turnedMost * 180 / kPi, 100 * *implicit.metrics.referenceError, 100 * *implicit.metrics.energyDriftEnd);
+  EXPECT_LT(*none.metrics.turnedMost, 0.1);
+  EXPECT_GT(*implicit.metrics.turnedMost, 3.0);  // flipped over
+  EXPECT_LT(*implicit.metrics.energyDriftEnd, 0);  // the implicit term dissipates, never gains
+  EXPECT_EQ(judge(dz, none).result, Verdict::Result::Fail);
+  EXPECT_EQ(judge(dz, implicit).result, Verdict::Result::Pass);
+}
+
+// A converged reference is checked by halving h: a coarse one is refused with the numbers.
+TEST(References, ConvergedRunIsCheckedByHalvingH) {
+  const std::string chain = R"({"bodies": [
+      {"name": "pivot", "static": true, "shape": {"type": "sphere", "radius": 0.02}, "position": [0, 3, 0]},
+      {"name": "l0", "shape": {"type": "capsule", "radius": 0.05, "half_height": 0.2}, "position": [0.3, 3, 0], "orientation": [0.7071068, 0, 0, 0.7071068], "mass": 1},
+      {"name": "l1", "shape": {"type": "capsule", "radius": 0.05, "half_height": 0.2}, "position": [0.9, 3, 0], "orientation": [0.7071068, 0, 0, 0.7071068], "mass": 1}],
+    "joints": [{"type": "ball", "bodies": ["pivot", "l0"], "anchor": [0, 3, 0]}, {"type": "ball", "bodies": ["l0", "l1"], "anchor": [0.6, 3, 0]}],
+    "criteria": {"reference": {"type": "converged", "method": "@M@", "change": @C@}}})";
+  auto with = [&](const std::string& m, const std::string& c) {
+    std::string t = chain;
+    t.replace(t.find("@M@"), 3, m);
+    t.replace(t.find("@C@"), 3, c);
+    return sceneFrom(t);
+  };
+  const Scene coarse = with("a1:h=1/30", "0.001");
+  try {
+    prepareReference(coarse, *coarse.criteria->reference, 1);
+    ADD_FAILURE() << "a coarse reference was accepted";
+  } catch (const ReferenceError& e) {
+    EXPECT_NE(std::string(e.what()).find("is not converged: halving h to 1/60 moved the trajectory by"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("the scene allows 0.10 %"), std::string::npos) << e.what();
+  }
+  const Scene fine = with("a1:h=1/960", "0.01");
+  const PreparedReference ref = prepareReference(fine, *fine.criteria->reference, 1);
+  ASSERT_TRUE(ref.converged);
+  EXPECT_LT(ref.converged->change, 0.01 * ref.converged->motion);
+  RunSetup setup;
+  setup.seconds = 1;
+  setup.reference = &ref;
+  const RunResult a1 = runMethod(fine, method("a1:h=1/240"), setup), a2 = runMethod(fine, method("a2:m=4:h=1/60"), setup);
+  std::printf("double pendulum, 1 s against a1 at h = 1/1920: a1 h=1/240 %.2f mm, a2 m=4 h=1/60 %.1f mm\n",
+              1e3 * *a1.metrics.trajectoryError, 1e3 * *a2.metrics.trajectoryError);
+  EXPECT_LT(*a1.metrics.trajectoryError, *a2.metrics.trajectoryError);
+  EXPECT_LT(*a1.metrics.trajectoryErrorRms, *a1.metrics.trajectoryError + 1e-15);
+}
+
+// One run, measured the same way for substep and for the Bullet peer: a box dropped 1 m onto the
+// ground falls 1 m, lands at about 4.4 m/s and comes to rest. Bullet, without speculative
+// contacts, sinks 3 cm at the impact; ours stop within 2 cm.
+TEST(Metrics, ADropMeasuredForBothEngines) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]},
+      {"name": "box", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 1.5, 0], "mass": 1}],
+      "criteria": {"tolerance": 0.5, "pass": {"penetration": 0.05, "jitter": 0.05}}})");
+  for (const char* spec : {"a2", "a5", "soft", "bullet"}) {
+    RunSetup setup;
+    setup.seconds = 2;
+    setup.repeat = 3;
+    const RunResult r = runMethod(s, method(spec), setup);
+    const Metrics& m = r.metrics;
+    EXPECT_TRUE(r.finite) << spec;
+    EXPECT_EQ(r.stepsDone, 120) << spec;
+    EXPECT_NEAR(m.displacementMax, 1.0, 0.04) << spec;
+    EXPECT_NEAR(m.speedMax, std::sqrt(2 * 9.81 * 1.0), 0.3) << spec;
+    ASSERT_TRUE(m.collapseTime) << spec;  // it moved more than the scene's 0.5 m tolerance while falling
+    EXPECT_NEAR(*m.collapseTime, std::sqrt(2 * 0.5 / 9.81), 0.03) << spec;
+    EXPECT_GT(m.penetrationMax, 0) << spec;
+    EXPECT_LT(m.penetrationMax, std::string(spec) == "bullet" ? 0.04 : 0.02) << spec;
+    EXPECT_LE(m.penetrationRms, m.penetrationMax) << spec;
+    EXPECT_LT(m.jitter, 0.05) << spec;
+    EXPECT_EQ(m.joints, 0);
+    EXPECT_FALSE(metricValue(m, "joint_error"));  // no joints: not measured
+    EXPECT_FALSE(m.energyDrift);                  // not conservative: not measured
+    EXPECT_EQ(r.cost.repeats.size(), 3u) << spec;
+    EXPECT_GT(r.cost.msPerStep, 0) << spec;
+    EXPECT_EQ(r.cost.stages.has_value(), std::string(spec) != "bullet") << spec;  // Bullet's stages are its own
+    EXPECT_EQ(judge(s, r).result, Verdict::Result::Pass) << spec << ": " << judge(s, r).figure;
+  }
+}
+
+// Joints by kind, angular errors and limits, over the run.
+TEST(Metrics, JointErrorsByKind) {
+  const Scene s = loadScene(kScenes + "/ragdoll.json");
+  RunSetup setup;
+  setup.seconds = 1;
+  const RunResult r = runMethod(s, method("a5"), setup);
+  const Metrics& m = r.metrics;
+  ASSERT_EQ(m.byKind.count("cone_twist"), 1u);
+  ASSERT_EQ(m.byKind.count("hinge"), 1u);
+  double worst = 0;
+  for (const auto& [kind, k] : m.byKind) {
+    EXPECT_LE(k.rms, k.max) << kind;
+    EXPECT_GT(k.samples, 0) << kind;
+    worst = std::max(worst, k.max);
+  }
+  EXPECT_DOUBLE_EQ(worst, m.jointErrorMax);
+  EXPECT_GT(m.byKind.at("hinge").angleMax, 0);  // hinge axes apart, measured
+  EXPECT_EQ(m.byKind.at("cone_twist").angleMax, 0);  // a cone-twist holds no angle: its limits do
+  EXPECT_GE(m.limitExcess.max(), m.limitExcess.hinge);
+  EXPECT_EQ(*metricValue(m, "limit_excess"), m.limitExcess.max());
+}
+
+// A method that cannot run a scene is a result that says so, not an error.
+TEST(Runner, RefusedAndDivergedRunsAreResults) {
+  const Scene shapes = loadScene(kScenes + "/shapes.json");  // meshes: no Bullet peer
+  RunSetup setup;
+  setup.seconds = 0.5;
+  const RunResult b = runMethod(shapes, method("bullet"), setup);
+  EXPECT_TRUE(b.refused);
+  EXPECT_NE(b.stopped.find("no Bullet peer for this scene"), std::string::npos) << b.stopped;
+  EXPECT_EQ(judge(shapes, b).result, Verdict::Result::Refused);
+  // The explicit gyroscopic term gains energy every step: at a large omega h the spin explodes,
+  // and the run stops where the failure watch says it diverged.
+  const Scene spin = sceneFrom(R"({"gravity": [0, 0, 0], "bodies": [{"name": "b", "mass": 1,
+      "shape": {"type": "box", "half_extents": [0.05, 0.2, 0.4]}, "angular_velocity": [1, 60, 0]}], "criteria": {"pass": {"speed": 1000}}})");
+  setup.seconds = 20;
+  const RunResult d = runMethod(spin, method("a2:gyro=explicit"), setup);
+  EXPECT_TRUE(d.diverged);
+  EXPECT_LT(d.stepsDone, d.steps);
+  EXPECT_NE(d.stopped.find("diverged at t ="), std::string::npos) << d.stopped;
+  EXPECT_EQ(judge(spin, d).result, Verdict::Result::Fail);
+  EXPECT_NE(judge(spin, d).figure.find("diverged at"), std::string::npos);
+  // A scene that states no check gives no verdict, whatever became of the run.
+  Scene bare = spin;
+  bare.criteria->pass.clear();
+  EXPECT_EQ(judge(bare, d).result, Verdict::Result::NoCriteria);
+  // Settings that do not resolve are an error before any run.
+  EXPECT_THROW(runMethod(shapes, method("a2:preset=4-medium"), RunSetup{}), std::invalid_argument);
+}
+
+// The settings a method runs with: its own, over the scene's criteria "with", over the time step;
+// never the rest of the scene's solver block.
+TEST(Methods, SettingsComeFromTheMethodTheWithBlockAndTheStep) {
+  const Scene p = loadScene(kScenes + "/pyramid.json");  // its solver block: a5, kappa 0.85, tau 0, warm
+  const SolverSettings s = methodSettings(method("a5:n=8"), p);
+  EXPECT_EQ(s.substeps, 8);
+  EXPECT_EQ(s.kappa, 1.0);
+  EXPECT_FALSE(s.warmStart);
+  EXPECT_DOUBLE_EQ(s.dt, 1.0 / 60);
+  EXPECT_DOUBLE_EQ(methodSettings(method("a5"), p, 0.005).dt, 0.005);
+  EXPECT_DOUBLE_EQ(methodSettings(method("a5:h=1/30"), p, 0.005).dt, 1.0 / 30);  // the method's own wins
+  const Scene dz = loadScene(kScenes + "/atlas/dzhanibekov_implicit.json");
+  EXPECT_EQ(methodSettings(method("a2"), dz).gyroscopic, Gyroscopic::Implicit);
+  EXPECT_EQ(methodSettings(method("a2:gyro=none"), dz).gyroscopic, Gyroscopic::None);
+  const BulletSettings b = bulletSettings(method("bullet:it=20"), p);
+  EXPECT_EQ(b.iterations, 20);
+  EXPECT_TRUE(b.gyroscopic);  // Bullet's own default
+  EXPECT_FALSE(bulletSettings(method("bullet:gyro=none"), p).gyroscopic);
+  EXPECT_EQ(method("bullet:it=20").family(), "bullet");
+  EXPECT_EQ(method("a5:n=8").family(), "a5");
+  EXPECT_EQ(stepText(1.0 / 120), "1/120");
+  EXPECT_EQ(stepText(0.003), "0.003");
+}
+
+// A record holds every setting (typed), every metric, the verdict and the commit.
+TEST(Records, OneRecordPerRun) {
+  const Scene s = loadScene(kScenes + "/atlas/projectile_wall.json");
+  RunSetup setup;
+  setup.seconds = 0.5;
+  const RunResult r = runMethod(s, method("a5:n=2"), setup);
+  const nlohmann::json j = recordJson(s, r, 0.5, 1, SweepPlace{"abc", 3, 10});
+  EXPECT_EQ(j["key"], "projectile_wall | a5:n=2 | h=1/60 | 0.5 s");
+  EXPECT_EQ(j["settings"]["substeps"], 2);  // an integer
+  EXPECT_EQ(j["settings"]["warm_start"], false);
+  EXPECT_EQ(j["settings"]["h"], "1/60");
+  for (const SettingSpec& spec : settingTable())
+    if (std::string(spec.key) != "preset") {
+      EXPECT_TRUE(j["settings"].contains(spec.key)) << spec.key;
+    }
+  for (const char* k : {"penetration_max_m", "penetration_rms_m", "joint_error_by_kind", "limit_excess_rad", "energy_drift",
+                        "jitter_mps", "displacement_max_m", "collapse_time_s", "trajectory_error_m", "failure"})
+    EXPECT_TRUE(j["metrics"].contains(k)) << k;
+  EXPECT_TRUE(j["cost"]["stages_ms_per_step"].contains("s3"));
+  EXPECT_EQ(j["verdict"]["result"], "pass");
+  EXPECT_EQ(j["error"]["metric"], "penetration");
+  EXPECT_EQ(j["sweep"]["index"], 3);
+  EXPECT_FALSE(j["commit"].get<std::string>().empty());
+  EXPECT_EQ(*recordValue(j, "penetration"), r.metrics.penetrationMax);
+  EXPECT_FALSE(recordValue(j, "joint_error"));
+  EXPECT_EQ(errorMetric(loadScene(kScenes + "/chain.json")), "joint_error");
+  EXPECT_EQ(errorMetric(loadScene(kScenes + "/stack.json")), "penetration");
+  EXPECT_EQ(errorMetric(loadScene(kScenes + "/reference/free_fall.json")), "trajectory_error");
+}
+
+TEST(Charts, ParetoFrontAndSlope) {
+  const std::vector<std::pair<double, double>> pts = {{1, 10}, {2, 5}, {3, 6}, {4, 1}, {0.5, 20}, {5, 1}};
+  EXPECT_EQ(paretoFront(pts), (std::vector<size_t>{4, 0, 1, 3}));
+  EXPECT_NEAR(logSlope({{0.1, 0.02}, {0.05, 0.005}, {0.025, 0.00125}}), 2.0, 1e-12);
+  EXPECT_TRUE(std::isnan(logSlope({{0.1, 0.02}})));
+}
+
+namespace {
+
+nlohmann::json fakeRow(const std::string& scene, const std::string& method, const std::string& family, int n, int m,
+                       double dt, double error, double msPerStep) {
+  return {{"key", scene + method + std::to_string(dt)}, {"scene", scene}, {"method", method}, {"family", family},
+          {"refused", false}, {"finite", true}, {"diverged", false},
+          {"settings", {{"dt", dt}, {"h", stepText(dt)}, {"substeps", n}, {"iterations", m}, {"algorithm", family}}},
+          {"cost", {{"ms_per_step", msPerStep}, {"ms_per_second", msPerStep / dt}}},
+          {"values", {{"joint_error", error}}},
+          {"error", {{"metric", "joint_error"}, {"label", "max joint error"}, {"unit", "m"}, {"value", error}}}};
+}
+
+}  // namespace
+
+// What each chart is made of, from records: the Pareto front, sub-steps against iterations at
+// equal work, A3/A4/A5, and the convergence order with its slope.
+TEST(Charts, EveryChartFromTheRecordsItNeeds) {
+  std::vector<nlohmann::json> rows;
+  for (int k : {1, 2, 4, 8}) {
+    rows.push_back(fakeRow("c", "a2:m=" + std::to_string(k), "a2", 1, k, 1.0 / 60, 0.2 / k, 0.01 * k));
+    for (const char* f : {"a3", "a4", "a5"})
+      rows.push_back(fakeRow("c", std::string(f) + ":n=" + std::to_string(k) + ":m=1", f, k, 1, 1.0 / 60, 0.05 / (k * k), 0.012 * k));
+  }
+  for (int d : {30, 60, 120}) rows.push_back(fakeRow("c", "a1:h=1/" + std::to_string(d), "a1", 1, 10, 1.0 / d, 0.3 / d, 0.5));
+  const std::vector<Chart> charts = makeCharts(rows, ChartOptions{});
+  std::vector<std::string> names;
+  for (const Chart& c : charts) names.push_back(c.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"c-pareto", "c-substeps", "c-havok", "c-convergence"}));
+  EXPECT_NE(charts[0].script.find("title \"a5\""), std::string::npos);
+  EXPECT_NE(charts[0].script.find("Pareto front"), std::string::npos);
+  EXPECT_NE(charts[0].script.find("set ylabel \"max joint error [m]\""), std::string::npos);
+  EXPECT_NE(charts[0].script.find("cost per simulated second [ms]"), std::string::npos);
+  EXPECT_NE(charts[1].script.find("a2: 1 step of n iterations"), std::string::npos);
+  EXPECT_NE(charts[1].script.find("a5: n sub-steps of 1 iteration"), std::string::npos);
+  EXPECT_NE(charts[3].script.find("a1 (slope 1.00)"), std::string::npos) << charts[3].script;
+  const std::string png = chartScript(charts[0], "png", "o'ut.png", "d.dat", ChartOptions{});
+  EXPECT_NE(png.find("set terminal pngcairo size 960,600"), std::string::npos);
+  EXPECT_NE(png.find("set output 'o''ut.png'"), std::string::npos);
+  EXPECT_EQ(png.find('@'), std::string::npos);
+  // Only what the rows hold: a lone method gives the Pareto chart alone.
+  EXPECT_EQ(makeCharts({rows[0]}, ChartOptions{}).size(), 1u);
+  // Labels name h only where it is not the chart's common step, and the title says so.
+  EXPECT_NE(charts[0].title.find("(h = 1/60 unless labelled)"), std::string::npos) << charts[0].title;
+  EXPECT_NE(charts[0].data.find("\"h=1/30\""), std::string::npos);
+  EXPECT_EQ(charts[0].data.find("m=4 h=1/60"), std::string::npos) << charts[0].data;
+}
+
+// A3/A4/A5 at one n each (the atlas's presets) is no chart against n; zero errors are drawn at a
+// floor on log axes, labelled 0 and said so; the front's points are ringed.
+TEST(Charts, OneNIsNoLineAndZeroIsLabelled) {
+  std::vector<nlohmann::json> rows;
+  for (const char* f : {"a3", "a4", "a5"}) rows.push_back(fakeRow("z", std::string(f) + ":n=4", f, 4, 1, 1.0 / 60, 0, 0.01));
+  rows.push_back(fakeRow("z", "a2:m=4", "a2", 1, 4, 1.0 / 60, 0.2, 0.004));
+  const std::vector<Chart> charts = makeCharts(rows, ChartOptions{});
+  ASSERT_EQ(charts.size(), 1u) << charts.back().name;
+  EXPECT_EQ(charts[0].name, "z-pareto");
+  EXPECT_NE(charts[0].data.find("0.02 \"n=4 (0)\""), std::string::npos) << charts[0].data;
+  EXPECT_NE(charts[0].script.find("a zero error is drawn at 0.02 (a tenth of the least other)"), std::string::npos)
+      << charts[0].script;
+  EXPECT_NE(charts[0].script.find("with points pt 6"), std::string::npos);  // the ring on the front
+  // A second n for one family makes the chart.
+  rows.push_back(fakeRow("z", "a5:n=8", "a5", 8, 1, 1.0 / 60, 0, 0.02));
+  EXPECT_EQ(makeCharts(rows, ChartOptions{}).size(), 2u);
+}
+
+// Sweep specs, plans, shards, truncated outputs and merging.
+TEST(Sweeps, SpecPlanShardsAndMerge) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("substep_test_lab_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return (dir / name).string();
+  };
+  auto error = [&](const std::string& text) {
+    try {
+      readSweepSpec(write("bad.json", text));
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error(R"({"scenes": ["chain"], "methods": ["a9"]})").find("methods[0]: \"a9\": unknown algorithm"), std::string::npos);
+  EXPECT_NE(error(R"({"scenes": ["chain"], "methods": "a2", "dt": ["1/0"]})").find("dt[0]: expected a number in [1e-6, 1]"), std::string::npos);
+  EXPECT_NE(error(R"({"scenes": ["chain"], "methods": "a2", "repat": 2})").find("unknown key \"repat\""), std::string::npos);
+  EXPECT_NE(error(R"({"methods": "a2"})").find("missing required field \"scenes\""), std::string::npos);
+  EXPECT_NE(error("[1,").find("not JSON"), std::string::npos);
+  const SweepSpec spec = readSweepSpec(write("ok.json", R"({"scenes": ["chain"], "methods": ["a2:m=4|10", "a1:h=1/240"],
+      "dt": ["1/60", 0.01], "repeat": 2, "seconds": 1.5})"));
+  EXPECT_EQ(spec.dts.size(), 2u);
+  EXPECT_DOUBLE_EQ(spec.dts[0], 1.0 / 60);
+  std::vector<Scene> scenes = {loadScene(kScenes + "/chain.json"), loadScene(kScenes + "/stack.json")};
+  const SweepPlan plan = planSweep(spec, scenes);
+  // 2 scenes x (2 a2 methods x 2 steps + a1 at its own h once) = 10.
+  ASSERT_EQ(plan.runs.size(), 10u);
+  // The chain states a converged reference: its keys say which.
+  EXPECT_EQ(plan.runs[0].key, "chain | a2:m=4 | h=1/60 | 1.5 s | against converged a3:n=4:m=8:h=1/240");
+  EXPECT_EQ(plan.runs[1].key, "chain | a2:m=4 | h=1/100 | 1.5 s | against converged a3:n=4:m=8:h=1/240");
+  EXPECT_EQ(plan.runs[4].key, "chain | a1:h=1/240 | h=1/240 | 1.5 s | against converged a3:n=4:m=8:h=1/240");
+  EXPECT_EQ(plan.runs[5].key, "stack | a2:m=4 | h=1/60 | 1.5 s");
+  EXPECT_EQ(planSweep(spec, scenes).id, plan.id);
+  SweepSpec other = spec;
+  other.repeat = 5;  // repeats do not change what runs
+  EXPECT_EQ(planSweep(other, scenes).id, plan.id);
+  other.seconds = 2;
+  EXPECT_NE(planSweep(other, scenes).id, plan.id);
+  // Shards: every run in exactly one.
+  for (long long k = 0; k < 10; ++k) {
+    int in = 0;
+    for (int i = 1; i <= 3; ++i) in += Shard{i, 3}.has(k);
+    EXPECT_EQ(in, 1);
+  }
+  EXPECT_EQ(parseShard("2/4").index, 2);
+  for (const char* bad : {"0/4", "5/4", "2", "a/b", "1/0", "-1/2", "1/2/3"}) EXPECT_THROW(parseShard(bad), std::invalid_argument) << bad;
+  // A last line cut short is left out and reported; any other bad line is an error.
+  bool truncated = false;
+  auto rows = readRows(write("r.jsonl", "{\"key\": \"a\"}\n{\"key\": \"b\"}\n{\"key\": \"c\", \"cost\""), &truncated);
+  EXPECT_TRUE(truncated);
+  EXPECT_EQ(rows.size(), 2u);
+  EXPECT_THROW(readRows(write("r2.jsonl", "{\"key\": \"a\"}\nnot json\n{\"key\": \"b\"}\n")), std::runtime_error);
+  EXPECT_THROW(readRows(write("r3.jsonl", "{\"nokey\": 1}\n")), std::runtime_error);
+  // Merging: duplicates kept once, gaps named per plan.
+  auto row = [](const std::string& key, long long index) {
+    return nlohmann::json{{"key", key}, {"sweep", {{"plan", "p"}, {"index", index}, {"runs", 5}}}};
+  };
+  const MergeResult m = mergeRows({{row("k0", 0), row("k2", 2)}, {row("k1", 1), row("k2", 2)}});
+  EXPECT_EQ(m.rows.size(), 3u);
+  EXPECT_EQ(m.rows[1]["key"], "k1");  // in plan order
+  EXPECT_EQ(m.duplicates, std::vector<std::string>{"k2"});
+  ASSERT_EQ(m.gaps.size(), 1u);
+  EXPECT_EQ(m.gaps[0], "plan p: 2 of 5 runs missing (4, 5)");
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Advice, QuantitiesWithUnits) {
+  EXPECT_DOUBLE_EQ(parseQuantity("1cm", "m"), 0.01);
+  EXPECT_DOUBLE_EQ(parseQuantity("5 mm", "m"), 0.005);
+  EXPECT_DOUBLE_EQ(parseQuantity("0.02", "m"), 0.02);
+  EXPECT_DOUBLE_EQ(parseQuantity("60s", "s"), 60);
+  EXPECT_DOUBLE_EQ(parseQuantity("2min", "s"), 120);
+  EXPECT_DOUBLE_EQ(parseQuantity("2%", ""), 0.02);
+  EXPECT_NEAR(parseQuantity("90deg", "rad"), kPi / 2, 1e-15);
+  for (const char* bad : {"", "cm", "1 parsec", "-1cm", "0", "nan", "1e999m", "5s"})
+    EXPECT_THROW(parseQuantity(bad, "m"), std::invalid_argument) << bad;
+}
+
+// The search finds the cheapest candidate that meets the target, by measured cost, and says when
+// none does. The 10-link pendulum chain released horizontal: its joints open 28 cm under A2 at
+// one iteration, 7 cm at two, 3.4 cm once converged (20 iterations or 1000), 2.2 cm under A5 at
+// n = 8, m = 8. Candidates far beyond the cheapest that met the target are not run.
+TEST(Advice, CheapestThatMeetsTheTarget) {
+  const Scene s = loadScene(kScenes + "/pendulum_chain.json");
+  AdviseOptions o;
+  o.seconds = 2;
+  o.targets = {Target{"joint_error", 0.05}};
+  o.candidates = parseMethods("a2:m=1|2|20|1000:h=1/60,a5:n=8:m=8");
+  o.repeat = 1;
+  const Advice a = advise(s, o);
+  ASSERT_GE(a.best, 0);
+  const Candidate& best = a.tried[static_cast<size_t>(a.best)];
+  EXPECT_TRUE(best.meets);
+  EXPECT_LE(*metricValue(best.run.metrics, "joint_error"), 0.05);
+  EXPECT_EQ(best.method.text, "a2:m=20:h=1/60");
+  for (const Candidate& c : a.tried) {
+    if (c.meets) {
+      EXPECT_LE(best.run.msPerSecond(), c.run.msPerSecond()) << c.method.text;
+    } else {
+      EXPECT_FALSE(c.missed.empty()) << c.method.text;
+    }
+    EXPECT_NE(c.method.text, "a2:m=1000:h=1/60");  // 15 times the work of the cheapest that met it
+  }
+  EXPECT_GE(a.runnerUp, 0);
+  EXPECT_EQ(a.tried.front().method.text, "a2:m=1:h=1/60");  // cheapest estimate first
+  EXPECT_FALSE(a.tried.front().run.stoppedEarly.empty());  // and stopped once it missed
+  o.targets = {Target{"joint_error", 1e-9}};
+  const Advice none = advise(s, o);
+  EXPECT_EQ(none.best, -1);
+  EXPECT_GE(none.closest, 0);
+  EXPECT_EQ(estimatedWork(method("a5:n=4:m=1"), s) < estimatedWork(method("a5:n=8:m=1"), s), true);
+  EXPECT_GT(defaultCandidates().size(), 500u);
+}
+
+// The Bullet peer's state is ours: the same poses and velocities, angular velocity in the body
+// frame.
+TEST(BulletPeer, StateRoundTripAndPenetration) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]},
+      {"name": "box", "shape": {"type": "box", "half_extents": [0.5, 0.25, 0.5]}, "position": [0, 0.24, 0], "mass": 1,
+       "orientation": [0.9238795, 0, 0.3826834, 0], "angular_velocity": [0, 2, 0], "velocity": [1, 0, 0]}]})");
+  BulletPeer peer(s.model, s.initial, 1.0 / 60, 10);
+  State st;
+  peer.state(st);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_LT((st.bodies[i].x - s.initial.bodies[i].x).norm(), 1e-6);
+    EXPECT_LT((st.bodies[i].w - s.initial.bodies[i].w).norm(), 1e-5);
+    EXPECT_LT((st.bodies[i].v - s.initial.bodies[i].v).norm(), 1e-6);
+  }
+  peer.step();
+  const BulletPeer::Penetration p = peer.penetration();
+  EXPECT_GT(p.points, 0);  // it starts 1 cm into the ground
+  EXPECT_GT(p.deepest, 0.001);
+  EXPECT_LT(p.deepest, 0.02);
+}
