@@ -11,7 +11,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 
 using namespace substep;
@@ -191,6 +193,29 @@ TEST(DirectSolver, SolvesArbitraryContactProblems) {
   EXPECT_GT(active, 100);
   EXPECT_GT(sticking, 50);
   EXPECT_GT(sliding, 50);
+}
+
+// Equality rows only (joints, no contact), and inconsistent: Γ = [[1, 1], [1, 1]], b = (1, -1).
+// Dantzig finds no exact answer, so the chain goes on to Lemke with no bounded row at all (an
+// empty LCP) and then Gauss-Seidel; the fuzzer found Lemke's empty blocks were indexed (UBSan,
+// a null pointer offset in Eigen) when the CI's campaign took this path. No λ does better than
+// |w| = 1 on both rows; what must hold is an answer, finite, and no report under the sanitizers.
+TEST(DirectSolver, InconsistentEqualitiesWithNoBoundedRowStayFinite) {
+  DenseMLCP m;
+  m.n = 2;
+  m.A = {1, 1, 1, 1};
+  m.b = {1, -1};
+  const double inf = std::numeric_limits<double>::infinity();
+  m.lo = {-inf, -inf};
+  m.hi = {inf, inf};
+  m.findex = {-1, -1};
+  m.fcount = {0, 0};
+  std::vector<double> x;
+  const DirectResult res = solveDirect(m, x);
+  ASSERT_TRUE(res.ok);
+  ASSERT_EQ(x.size(), 2u);
+  EXPECT_TRUE(std::isfinite(x[0]) && std::isfinite(x[1]));
+  EXPECT_NEAR(res.residual, 1.0, 1e-6);  // |w| = 1 on both rows whatever λ is: Γλ has equal entries
 }
 
 TEST(DirectSolver, ResidualDetectsAWrongAnswer) {

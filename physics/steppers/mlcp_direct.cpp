@@ -179,8 +179,13 @@ bool lemkeSolve(const DenseMLCP& p, std::vector<double>& x, Budget& budget) {
     Eigen::MatrixXd K = sub(U, U);
     K.diagonal() *= 1.0 + 1e-12;
     const Eigen::FullPivLU<Eigen::MatrixXd> lu(K);
-    KinvGur = lu.solve(sub(U, R));
     Kinvbu = lu.solve(subv(U));
+    if (nr == 0) {  // equalities only: nothing to pivot (Eigen must not see an empty right side)
+      x.assign(static_cast<size_t>(n), 0.0);
+      for (int k = 0; k < nu; ++k) x[static_cast<size_t>(U[static_cast<size_t>(k)])] = Kinvbu[k];
+      return true;
+    }
+    KinvGur = lu.solve(sub(U, R));
     Grr -= sub(R, U) * KinvGur;
     br -= sub(R, U) * Kinvbu;
   }
