@@ -105,8 +105,9 @@ struct Interrupted : std::runtime_error {
   Interrupted() : std::runtime_error("interrupted; no output written") {}
 };
 
-// Progress on stderr for long jobs: frames done, rate, time left. Silent for the first second,
-// when `show` is false (-q) and when stderr is not a terminal (a log file gets no bar).
+// Progress on stderr for long jobs: frames done, rate, time left. Silent for the first second
+// ($SUBSTEP_PROGRESS_DELAY seconds if set), when `show` is false (-q) and when stderr is not a
+// terminal (a log file gets no bar).
 class Progress {
  public:
   Progress(std::string label, long long total, bool show = true);
@@ -119,6 +120,7 @@ class Progress {
   std::string label_;
   long long total_;
   double start_;
+  double delay_;
   double lastDraw_ = -1;
   bool shown_ = false;
   bool enabled_ = true;

@@ -448,6 +448,68 @@ TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
   EXPECT_GT(compared, 30);
 }
 
+// Overlapping boxes: the separating-axis fast path against the general path (FCL's collide, its
+// box-box test being ODE's dBoxBox), on random pairs of random sizes that overlap by up to a
+// fifth of their size. The axis of least overlap is the exact penetration depth, so ours is never
+// deeper than FCL's; where they pick the same normal (dBoxBox prefers a face normal unless an
+// edge axis is 5 % better, ours takes the least overlap) the depths agree to 1e-9 m and the
+// manifolds have the same number of points at the same places.
+TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
+  uint64_t seed = 5;
+  auto uniform = [&] {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(seed >> 11) / 9007199254740992.0;
+  };
+  Narrowphase fast, general;
+  general.useFclForOverlappingBoxes(true);
+  int overlapping = 0, same = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Shape a = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
+    const Shape b = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
+    const Vec3 dir = Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5).normalized();
+    const Pose pa{Vec3::Zero(), Rq(4 * Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5))};
+    Pose pb{Vec3::Zero(), trial % 4 == 0 ? pa.q : Rq(4 * Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5))};
+    // Slide B out along dir until the pair is about to separate, then back in by up to 20 %.
+    double lo = 0, hi = 4;
+    for (int k = 0; k < 50; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      pb.p = mid * dir;
+      ContactPatch probe;
+      fast.collide(a, makeCollisionShape(a), pa, b, makeCollisionShape(b), pb, 0.0, probe);
+      bool deep = false;
+      for (int i = 0; i < probe.count; ++i) deep = deep || probe.p[i].depth > 0;
+      (deep ? lo : hi) = mid;
+    }
+    const double size = std::min(a.halfExtents.minCoeff(), b.halfExtents.minCoeff());
+    pb.p = (lo - 0.4 * size * uniform()) * dir;
+    ContactPatch ours, theirs;
+    fast.collide(a, makeCollisionShape(a), pa, b, makeCollisionShape(b), pb, 0.01, ours);
+    general.collide(a, makeCollisionShape(a), pa, b, makeCollisionShape(b), pb, 0.01, theirs);
+    ASSERT_GT(theirs.count, 0) << "trial " << trial;
+    ASSERT_GT(ours.count, 0) << "trial " << trial;
+    expectConsistent(ours);
+    auto deepest = [](const ContactPatch& p) {
+      double d = -1e9;
+      for (int i = 0; i < p.count; ++i) d = std::max(d, p.p[i].depth);
+      return d;
+    };
+    if (deepest(theirs) <= 1e-6) continue;  // only touching
+    ++overlapping;
+    EXPECT_LE(deepest(ours), deepest(theirs) + 1e-9) << "trial " << trial;
+    if (ours.p[0].n.dot(theirs.p[0].n) < 1 - 1e-9) continue;
+    ++same;
+    EXPECT_NEAR(deepest(ours), deepest(theirs), 1e-9) << "trial " << trial;
+    ASSERT_EQ(ours.count, theirs.count) << "trial " << trial;
+    for (int i = 0; i < ours.count; ++i) {
+      EXPECT_LT((ours.p[i].pA - theirs.p[i].pA).norm(), 1e-9) << "trial " << trial << " point " << i;
+      EXPECT_NEAR(ours.p[i].depth, theirs.p[i].depth, 1e-9) << "trial " << trial << " point " << i;
+    }
+  }
+  std::printf("overlapping box pairs: %d, the same normal as FCL's: %d\n", overlapping, same);
+  EXPECT_GT(overlapping, 1500);
+  EXPECT_GT(same, overlapping * 9 / 10);
+}
+
 // Rays against every shape in closed form (the server's picking), checked against the distances
 // that geometry gives, from outside, from inside, and past a body.
 TEST(Raycast, EveryShapeAtItsKnownDistance) {

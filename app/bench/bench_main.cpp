@@ -37,6 +37,8 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <vector>
 
@@ -472,6 +474,148 @@ void writeJson(const std::string& path, const nlohmann::json& doc) {
   file.commit();
 }
 
+// --- scaling mode -----------------------------------------------------------------------------
+//
+// substep-bench --scaling: piles of 100, 300, 1000, 3000 and 10 000 unit boxes (columns of ten
+// with 0.1 m gaps, the columns 1.1 m apart on a square grid, as pile.json lays out its 1000),
+// each case stepped --steps times on a fresh world, and the log-log slope of the step time
+// against the body count (least squares over the sizes; 1 is linear). Each run is a child
+// process, so that its peak resident memory (getrusage of the child) is its own; memory per body
+// is the 10 000-box peak over the 100-box one, divided by the 9 900 bodies between them.
+
+std::string pileSceneText(int boxes) {
+  const int columns = (boxes + 9) / 10;
+  const int side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(columns))));
+  const double spacing = 1.1, half = 0.5 * spacing * (side - 1);
+  nlohmann::json gens = nlohmann::json::array();
+  for (int c = 0; c < columns; ++c) {
+    const int count = std::min(10, boxes - 10 * c);
+    gens.push_back({{"type", "stack"},
+                    {"name", "col_" + std::to_string(c)},
+                    {"count", count},
+                    {"half_extents", {0.5, 0.5, 0.5}},
+                    {"position", {-half + spacing * (c % side), 0.1, -half + spacing * (c / side)}},
+                    {"gap", 0.1},
+                    {"mass", 1},
+                    {"friction", 0.6}});
+  }
+  const double ground = half + 5;
+  const nlohmann::json scene = {
+      {"description", "scaling pile of " + std::to_string(boxes) + " boxes"},
+      {"solver", {{"dt", 1.0 / 60.0}}},
+      {"bodies",
+       {{{"name", "ground"}, {"static", true}, {"shape", {{"type", "box"}, {"half_extents", {ground, 0.5, ground}}}},
+         {"position", {0, -0.5, 0}}, {"friction", 0.6}}}},
+      {"generators", gens}};
+  return scene.dump();
+}
+
+struct ScalingRun {
+  double step = 0;      // mean wall time of a step [s]
+  int contacts = 0;     // contact points at the last step
+  bool finite = true;
+  long peakKiB = 0;     // the child's peak resident memory [KiB]
+};
+
+// One run in a child process: the pile built, stepped `steps` times, each step timed.
+ScalingRun scalingRunInChild(const Case& c, int boxes, int steps) {
+  int fd[2];
+  if (pipe(fd) != 0) throw std::runtime_error("pipe failed");
+  std::cout.flush();
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    close(fd[0]);
+    SceneLimits lim;
+    lim.maxBodies = boxes + 1;
+    const Scene scene = parseScene(pileSceneText(boxes), "pile", ".", lim);
+    std::vector<double> times(static_cast<size_t>(steps));
+    Run r = c.engine == Engine::Substep ? runSubstep(scene, caseSettings(c, 1.0 / 60.0), steps, times)
+                                        : runBullet(scene, 1.0 / 60.0, c.iterations, steps, times);
+    const double out[3] = {r.total, static_cast<double>(r.contacts), r.finite ? 1.0 : 0.0};
+    const ssize_t w = write(fd[1], out, sizeof out);
+    _exit(w == static_cast<ssize_t>(sizeof out) ? 0 : 1);
+  }
+  close(fd[1]);
+  double in[3] = {0, 0, 0};
+  const ssize_t got = read(fd[0], in, sizeof in);
+  close(fd[0]);
+  int status = 0;
+  struct rusage usage {};
+  wait4(pid, &status, 0, &usage);
+  if (got != static_cast<ssize_t>(sizeof in) || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw std::runtime_error(std::string("the ") + c.id + " run of " + std::to_string(boxes) + " boxes failed");
+  return ScalingRun{in[0], static_cast<int>(in[1]), in[2] != 0, usage.ru_maxrss};
+}
+
+// Least-squares slope of log y against log x.
+double logLogSlope(const std::vector<double>& x, const std::vector<double>& y) {
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const double n = static_cast<double>(x.size());
+  for (size_t i = 0; i < x.size(); ++i) {
+    const double lx = std::log(x[i]), ly = std::log(y[i]);
+    sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly;
+  }
+  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+constexpr double kScalingGoal = 1.1;
+
+int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes, int steps, int repeat,
+            const std::string& json) {
+  if (!json.empty()) checkJsonPath(json);
+  std::cout << "substep-bench --scaling  " << utcNow() << "  " << cpuModel() << "; build " << SUBSTEP_BUILD_TYPE
+            << "; load average " << loadAverage() << "\n"
+            << "piles of unit boxes in columns of ten; " << steps << " steps of 1/60 s, every step timed; median of "
+            << repeat << " runs, each a fresh child process\n\n";
+  std::printf("%-16s %7s %11s %9s %10s %12s\n", "case", "boxes", "step [ms]", "contacts", "peak [MiB]", "per box [us]");
+  nlohmann::json list = nlohmann::json::array();
+  bool allFinite = true;
+  for (const Case* c : cases) {
+    std::vector<double> x, y;
+    std::vector<long> peaks;
+    nlohmann::json rows = nlohmann::json::array();
+    for (int boxes : sizes) {
+      std::vector<ScalingRun> runs;
+      for (int k = 0; k < repeat; ++k) runs.push_back(scalingRunInChild(*c, boxes, steps));
+      std::sort(runs.begin(), runs.end(), [](const ScalingRun& a, const ScalingRun& b) { return a.step < b.step; });
+      const ScalingRun& m = runs[runs.size() / 2];
+      long peak = 0;
+      for (const ScalingRun& r : runs) peak = std::max(peak, r.peakKiB);
+      allFinite = allFinite && m.finite;
+      x.push_back(boxes);
+      y.push_back(m.step);
+      peaks.push_back(peak);
+      std::printf("%-16s %7d %11.3f %9d %10.1f %12.2f%s\n", c->label, boxes, m.step * 1e3, m.contacts, peak / 1024.0,
+                  m.step / boxes * 1e6, m.finite ? "" : "  NOT FINITE");
+      std::fflush(stdout);
+      rows.push_back({{"boxes", boxes}, {"step_ms", m.step * 1e3}, {"contact_points", m.contacts},
+                      {"peak_rss_kib", peak}, {"finite", m.finite}});
+    }
+    const double slope = x.size() > 1 ? logLogSlope(x, y) : NAN;
+    nlohmann::json entry = {{"case", c->id}, {"label", c->label}, {"sizes", rows}, {"slope", slope}};
+    std::printf("%-16s slope of log step time against log boxes: %.3f (goal at most %.1f: %s)\n", c->label, slope,
+                kScalingGoal, slope <= kScalingGoal ? "MET" : "NOT MET");
+    if (x.size() > 1) {
+      const double perBody = (peaks.back() - peaks.front()) * 1024.0 / (x.back() - x.front());
+      std::printf("%-16s peak resident memory %.1f MiB at %d boxes; %.2f KiB a box (from %d to %d boxes)\n",
+                  c->label, peaks.back() / 1024.0, static_cast<int>(x.back()), perBody / 1024.0,
+                  static_cast<int>(x.front()), static_cast<int>(x.back()));
+      entry["bytes_per_box"] = perBody;
+    }
+    std::printf("\n");
+    list.push_back(entry);
+  }
+  if (!json.empty()) {
+    nlohmann::json doc = {{"tool", "substep-bench --scaling"}, {"date_utc", utcNow()}, {"cpu", cpuModel()},
+                          {"build_type", SUBSTEP_BUILD_TYPE}, {"source", sourceState()}, {"steps", steps},
+                          {"repeat", repeat}, {"goal_slope_at_most", kScalingGoal}, {"cases", list}};
+    writeJson(json, doc);
+    std::cout << "wrote " << json << "\n";
+  }
+  return allFinite ? 0 : kExitNonFinite;
+}
+
 // --- main -------------------------------------------------------------------------------------
 
 struct Options {
@@ -481,6 +625,8 @@ struct Options {
   std::vector<std::string> algos;
   std::string json;
   bool quick = false;
+  bool scaling = false;
+  std::vector<int> sizes{100, 300, 1000, 3000, 10000};
   std::string command;  // the command line, for the JSON
 };
 
@@ -488,7 +634,8 @@ int bench(const Options& opt) {
   std::vector<const Case*> cases;
   if (opt.algos.empty()) {
     for (const Case& c : allCases())
-      if (c.byDefault) cases.push_back(&c);
+      if (opt.scaling ? std::string(c.id) == "a5-stack" || std::string(c.id) == "bullet" : c.byDefault)
+        cases.push_back(&c);
   } else {
     for (const std::string& id : opt.algos) {
       const auto it = std::find_if(allCases().begin(), allCases().end(), [&](const Case& c) { return id == c.id; });
@@ -501,6 +648,7 @@ int bench(const Options& opt) {
     }
   }
 
+  if (opt.scaling) return scaling(cases, opt.sizes, opt.steps, opt.repeat, opt.json);
   if (!opt.json.empty()) checkJsonPath(opt.json);
   // Load every scene and check every case can be built, before anything is timed.
   std::vector<Scene> scenes;
@@ -707,7 +855,16 @@ int main(int argc, char** argv) {
   app.add_option("--algos", opt.algos, algoHelp)->delimiter(',');
   app.add_option("--json", opt.json, "Also write the results as JSON to FILE (written atomically)");
   app.add_flag("--quick", opt.quick, "Smoke test: 10 steps per run unless --steps is given");
+  app.add_flag("--scaling", opt.scaling,
+               "Scaling mode: piles of --sizes boxes, the log-log slope of step time against the count and the "
+               "peak memory per box (default cases a5-stack,bullet; 120 steps, 3 repeats unless given)");
+  auto* repeatOpt = app.get_option("--repeat");
+  app.add_option("--sizes", opt.sizes, "Scaling mode: pile sizes in boxes (default 100,300,1000,3000,10000)")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 100000));
   return substep::app::runCommandLine(app, argc, argv, "substep-bench", [&] {
+    if (opt.scaling && stepsOpt->count() == 0) opt.steps = 120;
+    if (opt.scaling && repeatOpt->count() == 0) opt.repeat = 3;
     if (opt.quick && stepsOpt->count() == 0) opt.steps = 10;
     for (int i = 0; i < argc; ++i) opt.command += (i ? " " : "") + std::string(argv[i]);
     return bench(opt);

@@ -409,13 +409,16 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
     bool face = true;
     const double gap = boxGapLowerBound(sA.halfExtents, poseA, sB.halfExtents, poseB, &axis, &face);
     if (gap > margin) return;  // further apart than the margin: no contact and no speculative point
-    if (gap > kTouching || (gap >= -kTouching && face)) {
-      // Apart within the margin, or touching face to face (boxes stacked by a generator): the
-      // separating axis is the normal and its gap the (negative) depth. The gap is a lower bound
-      // on the distance (exact when a face is closest), so a speculative point may stop the boxes
-      // a little early, never late. FCL would need collide and distance here (and for touching
-      // boxes a third, nudged collide): its box-box distance was the largest part of s1 on a
-      // collapsing pyramid.
+    // The separating axis is the normal and its gap the (negative) depth, whether the boxes are
+    // apart within the margin, touching (stacked by a generator) or overlapping. Overlapping, the
+    // axis of least overlap over all 15 is the exact penetration depth and direction, what FCL's
+    // own box-box test (ODE's dBoxBox) computes, but without FCL's allocations and its transform
+    // conversions (the fast path is tested against it on random pairs). Apart, the gap is a lower
+    // bound on the distance (exact when a face is closest), so a speculative point may stop the
+    // boxes a little early, never late; FCL would need collide and distance here (and for
+    // touching boxes a third, nudged collide): its box-box distance was the largest part of s1
+    // on a collapsing pyramid. useFclForOverlappingBoxes(true) restores the general path.
+    if (!fclBoxBox_ || gap > kTouching || (gap >= -kTouching && face)) {
       fromNormal(sA, poseA, sB, poseB, axis, -gap, margin, 0.5 * (poseA.p + poseB.p), out);
       return;
     }

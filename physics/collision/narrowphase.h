@@ -40,8 +40,12 @@ class Narrowphase {
   // `margin` [m]. B may be a plane or a static triangle mesh; A may not.
   void collide(const Shape& shapeA, const CollisionShape& cA, const Pose& poseA, const Shape& shapeB,
                const CollisionShape& cB, const Pose& poseB, double margin, ContactPatch& out);
+  // Overlapping box pairs get their normal and depth from the separating-axis test; with this
+  // set, from FCL as every other pair (the general path the fast one is tested against).
+  void useFclForOverlappingBoxes(bool on) { fclBoxBox_ = on; }
 
  private:
+  bool fclBoxBox_ = false;
   fcl::CollisionRequestd request_;
   fcl::CollisionResultd result_;
   fcl::DistanceRequestd distanceRequest_;
