@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 
 namespace substep::render {
 
@@ -254,6 +255,40 @@ GpuInstance pack(const Instance& in) {
   return g;
 }
 
+// How large a length looks at a point: pixels on screen (perspective) or texels of the shadow map
+// (orthographic), for choosing a round primitive's level of detail.
+struct PixelScale {
+  Vec3f eye = Vec3f::Zero();      // where distances (the draw order) are measured from
+  Vec3f forward = Vec3f::Zero();  // perspective: the view direction (zero: orthographic)
+  float perMetre = 1;             // pixels of a metre at depth 1 (perspective) or anywhere (orthographic)
+  float zNear = 0.05f;
+  float maxError = kMaxSilhouetteError;  // [pixels or texels]
+
+  float pixels(float length, const Vec3f& at, float extent) const {
+    if (forward.isZero()) return length * perMetre;
+    // Depth of the instance's nearest point; anything reaching the near plane gets the finest level.
+    const float depth = forward.dot(at - eye) - extent;
+    return depth <= zNear ? std::numeric_limits<float>::infinity() : length * perMetre / depth;
+  }
+};
+
+// What a view's camera makes of lengths: pixels on screen.
+PixelScale screenScale(const DrawList& dl, const Viewport& vp) {
+  PixelScale p;
+  p.eye = dl.camera.eye;
+  p.forward = (dl.camera.target - dl.camera.eye).normalized();
+  const float aspect = static_cast<float>(vp.width) / static_cast<float>(std::max(vp.height, 1));
+  p.perMetre = dl.camera.projection(aspect)(1, 1) * 0.5f * static_cast<float>(vp.height);
+  p.zNear = dl.camera.zNear;
+  return p;
+}
+
+int levelOf(const Instance& in, const PixelScale& scale) {
+  if (!isRound(in.mesh)) return 0;
+  const float radius = std::max(in.scale.x(), in.scale.z());
+  return roundLevel(scale.pixels(radius, in.position, in.scale.maxCoeff() + std::abs(in.stretch)), scale.maxError);
+}
+
 struct TextVertex {
   float x, y, s, t;
   float r, g, b, a;
@@ -280,7 +315,7 @@ struct GlRenderer::Impl {
   std::vector<ShadowMap> shadowMaps;  // one per view of a frame, made on first use
   GLuint meshProg = 0, flatProg = 0, depthProg = 0, skyProg = 0, textProg = 0;
   GLuint instanceVbo = 0, emptyVao = 0, textVao = 0, textVbo = 0;
-  std::vector<GpuMesh> primitives;
+  std::vector<std::vector<GpuMesh>> primitives;  // by mesh id, then level of detail (round ones)
   std::map<const Mesh*, GpuMesh> custom;  // keyed by the model's mesh, uploaded on first use
   std::vector<std::shared_ptr<const Mesh>> customKeep;  // so a key is never reused by a new mesh
   std::string fontPath;
@@ -331,8 +366,8 @@ struct GlRenderer::Impl {
     return g;
   }
 
-  const GpuMesh& meshFor(int id, const DrawList& dl) {
-    if (id < kFirstCustomMesh) return primitives[static_cast<size_t>(id)];
+  const GpuMesh& meshFor(int id, int level, const DrawList& dl) {
+    if (id < kFirstCustomMesh) return primitives[static_cast<size_t>(id)][static_cast<size_t>(isRound(id) ? level : 0)];
     const auto& sp = dl.meshes.at(static_cast<size_t>(id - kFirstCustomMesh));
     auto it = custom.find(sp.get());
     if (it != custom.end()) return it->second;
@@ -358,30 +393,41 @@ struct GlRenderer::Impl {
     return *fonts.emplace(px, std::move(f)).first->second;
   }
 
-  // Draws instances grouped by mesh with one instanced call per mesh.
-  // Within a mesh, nearest first: hidden fragments then fail the depth test early.
-  void drawInstances(const std::vector<Instance>& all, const DrawList& dl, bool shadowCasters, const Vec3f& eye) {
-    std::vector<const Instance*> list;
+  // Draws instances grouped by mesh and level of detail with one instanced call per group.
+  // Within a group, nearest first: hidden fragments then fail the depth test early.
+  // With `finest`, no instance is drawn finer than that scale would draw it.
+  void drawInstances(const std::vector<Instance>& all, const DrawList& dl, bool shadowCasters, const PixelScale& scale,
+                     const PixelScale* finest = nullptr) {
+    struct Item {
+      const Instance* in;
+      int level;
+      float distance;
+    };
+    std::vector<Item> list;
     list.reserve(all.size());
     for (const Instance& in : all)
-      if (!shadowCasters || !(in.flags & kNoShadow)) list.push_back(&in);
+      if (!shadowCasters || !(in.flags & kNoShadow))
+        list.push_back({&in, finest ? std::min(levelOf(in, scale), levelOf(in, *finest)) : levelOf(in, scale),
+                        (in.position - scale.eye).squaredNorm()});
     if (list.empty()) return;
-    std::stable_sort(list.begin(), list.end(), [&](const Instance* a, const Instance* b) {
-      if (a->mesh != b->mesh) return a->mesh < b->mesh;
-      return (a->position - eye).squaredNorm() < (b->position - eye).squaredNorm();
+    std::stable_sort(list.begin(), list.end(), [](const Item& a, const Item& b) {
+      if (a.in->mesh != b.in->mesh) return a.in->mesh < b.in->mesh;
+      if (a.level != b.level) return a.level < b.level;
+      return a.distance < b.distance;
     });
     std::vector<GpuInstance> packed(list.size());
-    for (size_t i = 0; i < list.size(); ++i) packed[i] = pack(*list[i]);
+    for (size_t i = 0; i < list.size(); ++i) packed[i] = pack(*list[i].in);
     glBindBuffer(GL_ARRAY_BUFFER, instanceVbo);
     glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(packed.size() * sizeof(GpuInstance)), packed.data(),
                  GL_STREAM_DRAW);
     for (size_t first = 0; first < list.size();) {
+      const int mesh = list[first].in->mesh, level = list[first].level;
       size_t last = first;
-      while (last < list.size() && list[last]->mesh == list[first]->mesh) ++last;
-      const GpuMesh& m = meshFor(list[first]->mesh, dl);
+      while (last < list.size() && list[last].in->mesh == mesh && list[last].level == level) ++last;
+      const GpuMesh& m = meshFor(mesh, level, dl);
       // Primitives are closed and wound outwards, so their back faces need not be drawn (llvmpipe
       // pays per fragment, hidden or not); model meshes may be open (a bowl) and stay two-sided.
-      if (list[first]->mesh < kFirstCustomMesh)
+      if (mesh < kFirstCustomMesh)
         glEnable(GL_CULL_FACE);
       else
         glDisable(GL_CULL_FACE);
@@ -455,7 +501,7 @@ struct GlRenderer::Impl {
   }
 
   // Depth of the view's shadow casters from the light.
-  void drawShadowMap(const DrawList& dl, const ShadowMap& sm) {
+  void drawShadowMap(const DrawList& dl, const Viewport& vp, const ShadowMap& sm) {
     float texelWorld = 0;
     const Mat4f light = lightMatrix(dl, texelWorld);
     glBindFramebuffer(GL_FRAMEBUFFER, sm.fbo);
@@ -468,7 +514,14 @@ struct GlRenderer::Impl {
     glPolygonOffset(1.5f, 2.0f);
     glUseProgram(depthProg);
     glUniformMatrix4fv(glGetUniformLocation(depthProg, "uViewProj"), 1, GL_FALSE, light.data());
-    drawInstances(dl.solids, dl, true, dl.boundsCentre - 1000 * dl.lightDirection);
+    PixelScale texels;  // orthographic: texels of the map per metre
+    texels.eye = dl.boundsCentre - 1000 * dl.lightDirection;
+    texels.perMetre = 1 / texelWorld;
+    texels.maxError = kMaxShadowSilhouetteError;
+    // A caster finer than what receives its shadow would stand out of the receiver's facets and
+    // shade their middles (acne): casters are never finer than the view draws them.
+    const PixelScale screen = screenScale(dl, vp);
+    drawInstances(dl.solids, dl, true, texels, &screen);
     glDisable(GL_POLYGON_OFFSET_FILL);
   }
 
@@ -510,7 +563,8 @@ struct GlRenderer::Impl {
     const float dist = (dl.camera.eye - dl.camera.target).norm();
     const float fog[2] = {std::max(3 * dist, 30.0f), std::max(12 * dist, 150.0f)};
     glUniform2fv(glGetUniformLocation(meshProg, "uFog"), 1, fog);
-    drawInstances(dl.solids, dl, false, dl.camera.eye);
+    const PixelScale pixels = screenScale(dl, vp);
+    drawInstances(dl.solids, dl, false, pixels);
 
     // The sky where no solid is: at the far plane, passing the depth test only where the depth
     // is still the cleared 1.
@@ -529,7 +583,7 @@ struct GlRenderer::Impl {
       glUseProgram(flatProg);
       glUniformMatrix4fv(glGetUniformLocation(flatProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
       glUniform3fv(glGetUniformLocation(flatProg, "uEye"), 1, dl.camera.eye.data());
-      drawInstances(dl.overlays, dl, false, dl.camera.eye);
+      drawInstances(dl.overlays, dl, false, pixels);
     }
     glDisable(GL_SCISSOR_TEST);
   }
@@ -699,7 +753,11 @@ GlRenderer::GlRenderer(int width, int height, const RendererOptions& options)
 
   glGenBuffers(1, &m.instanceVbo);
   glGenVertexArrays(1, &m.emptyVao);
-  for (int id = 0; id < kFirstCustomMesh; ++id) m.primitives.push_back(m.upload(primitiveMesh(id)));
+  for (int id = 0; id < kFirstCustomMesh; ++id) {
+    m.primitives.emplace_back();
+    for (int level = 0; level < (isRound(id) ? kRoundLevels : 1); ++level)
+      m.primitives.back().push_back(m.upload(primitiveMesh(id, level)));
+  }
 
   glGenVertexArrays(1, &m.textVao);
   glBindVertexArray(m.textVao);
@@ -761,7 +819,7 @@ void GlRenderer::render(const std::vector<View>& views, Image& img, FrameTimings
   // so a clear followed by a switch to the shadow map would be a real pass over the buffer, while
   // a clear followed by drawing is done per tile as it is drawn (next to free).
   if (m.shadowSize > 0)
-    for (size_t i = 0; i < views.size(); ++i) m.drawShadowMap(*views[i].list, m.shadowMap(i));
+    for (size_t i = 0; i < views.size(); ++i) m.drawShadowMap(*views[i].list, views[i].viewport, m.shadowMap(i));
   m.lap(&FrameTimings::shadow);
   // One clear of the whole surface (colour and depth) for every view: panels do not overlap. The
   // sky then covers what the solids leave; drawn under them after the resolve, it needs the

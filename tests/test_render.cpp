@@ -20,11 +20,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <functional>
+#include <limits>
 #include <set>
 
 namespace fs = std::filesystem;
@@ -58,25 +60,28 @@ Eigen::Vector3f project(const Camera& c, float aspect, const Vec3f& p) {
 // normal agrees with its vertex normals. (Back faces are culled, so a wrong winding would hide faces.)
 TEST(Meshes, PrimitivesAreClosedOutwardWoundAndUnitSized) {
   for (int id = 0; id < kFirstCustomMesh; ++id) {
-    const MeshData m = primitiveMesh(id);
-    ASSERT_EQ(m.indices.size() % 3, 0u) << id;
-    ASSERT_FALSE(m.indices.empty()) << id;
-    for (size_t t = 0; t < m.indices.size(); t += 3) {
-      const MeshVertex& a = m.vertices[m.indices[t]];
-      const MeshVertex& b = m.vertices[m.indices[t + 1]];
-      const MeshVertex& c = m.vertices[m.indices[t + 2]];
-      // Positions as the capsule's stretch would place them, so its side quads are not degenerate.
-      auto pos = [](const MeshVertex& v) { return Vec3f(v.position[0], v.position[1] + v.capSign, v.position[2]); };
-      const Vec3f g = (pos(b) - pos(a)).cross(pos(c) - pos(a));
-      if (g.norm() < 1e-7f) continue;  // the poles of a UV sphere
-      const Vec3f n = Vec3f(a.normal[0], a.normal[1], a.normal[2]) + Vec3f(b.normal[0], b.normal[1], b.normal[2]) +
-                      Vec3f(c.normal[0], c.normal[1], c.normal[2]);
-      EXPECT_GT(g.dot(n), 0) << "mesh " << id << " triangle " << t / 3;
-    }
-    for (const MeshVertex& v : m.vertices) {
-      const Vec3f p(v.position[0], v.position[1], v.position[2]);
-      EXPECT_LE(p.cwiseAbs().maxCoeff(), 1.0f + 1e-5f) << id;
-      EXPECT_NEAR(Vec3f(v.normal[0], v.normal[1], v.normal[2]).norm(), 1.0f, 1e-5f) << id;
+    for (int level = 0; level < (isRound(id) ? kRoundLevels : 1); ++level) {
+      SCOPED_TRACE("level " + std::to_string(level));
+      const MeshData m = primitiveMesh(id, level);
+      ASSERT_EQ(m.indices.size() % 3, 0u) << id;
+      ASSERT_FALSE(m.indices.empty()) << id;
+      for (size_t t = 0; t < m.indices.size(); t += 3) {
+        const MeshVertex& a = m.vertices[m.indices[t]];
+        const MeshVertex& b = m.vertices[m.indices[t + 1]];
+        const MeshVertex& c = m.vertices[m.indices[t + 2]];
+        // Positions as the capsule's stretch would place them, so its side quads are not degenerate.
+        auto pos = [](const MeshVertex& v) { return Vec3f(v.position[0], v.position[1] + v.capSign, v.position[2]); };
+        const Vec3f g = (pos(b) - pos(a)).cross(pos(c) - pos(a));
+        if (g.norm() < 1e-7f) continue;  // the poles of a UV sphere
+        const Vec3f n = Vec3f(a.normal[0], a.normal[1], a.normal[2]) + Vec3f(b.normal[0], b.normal[1], b.normal[2]) +
+                        Vec3f(c.normal[0], c.normal[1], c.normal[2]);
+        EXPECT_GT(g.dot(n), 0) << "mesh " << id << " triangle " << t / 3;
+      }
+      for (const MeshVertex& v : m.vertices) {
+        const Vec3f p(v.position[0], v.position[1], v.position[2]);
+        EXPECT_LE(p.cwiseAbs().maxCoeff(), 1.0f + 1e-5f) << id;
+        EXPECT_NEAR(Vec3f(v.normal[0], v.normal[1], v.normal[2]).norm(), 1.0f, 1e-5f) << id;
+      }
     }
   }
   const MeshData box = boxMesh();
@@ -93,6 +98,34 @@ TEST(Meshes, PrimitivesAreClosedOutwardWoundAndUnitSized) {
       EXPECT_EQ(v.capSign, -1.0f);
     }
   }
+}
+
+// A round primitive's level is the coarsest whose silhouette misses the circle by at most the
+// allowed error; large ones keep the finest level (the only one before levels existed).
+TEST(Meshes, RoundLevelsAreTheCoarsestWithinTheError) {
+  auto error = [](float radius, int level) {
+    return radius * (1 - std::cos(3.14159265f / static_cast<float>(kRoundSlices[level])));
+  };
+  int previous = 0;
+  for (float r = 0.1f; r < 200; r *= 1.05f) {
+    const int level = roundLevel(r);
+    EXPECT_GE(level, previous) << r;  // never coarser for a larger radius
+    previous = level;
+    if (level < kFinestLevel) {
+      EXPECT_LE(error(r, level), kMaxSilhouetteError) << r;
+    }
+    if (level > 0) {
+      EXPECT_GT(error(r, level - 1), kMaxSilhouetteError) << r;
+    }
+  }
+  EXPECT_EQ(roundLevel(0.5f), 0);
+  EXPECT_EQ(roundLevel(1000.0f), kFinestLevel);
+  EXPECT_EQ(roundLevel(std::numeric_limits<float>::infinity()), kFinestLevel);
+  // Slices, stacks and capsule rings follow the level: the finest is the mesh used before.
+  EXPECT_EQ(primitiveMesh(kSphereMesh).indices.size(), sphereMesh(32, 16).indices.size());
+  EXPECT_EQ(primitiveMesh(kCapsuleMesh).indices.size(), capsuleMesh(32, 8).indices.size());
+  EXPECT_LT(primitiveMesh(kCapsuleMesh, 1).indices.size(), primitiveMesh(kCapsuleMesh, 2).indices.size());
+  EXPECT_THROW(primitiveMesh(kBoxMesh, kRoundLevels), std::invalid_argument);
 }
 
 TEST(Meshes, ModelMeshesKeepCreasesAndSmoothCurves) {

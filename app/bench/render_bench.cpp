@@ -42,6 +42,15 @@ using Clock = std::chrono::steady_clock;
 
 double msSince(Clock::time_point t0) { return 1e3 * std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// CPU time of the whole process [ms]: the main thread and llvmpipe's rasteriser threads. Less
+// sensitive than wall-clock time to other work on a shared machine (though not immune: caches and
+// the host's scheduling still count).
+double cpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
+}
+
 struct Stats {
   double median = 0, min = 0, max = 0, mean = 0;
 };
@@ -161,7 +170,7 @@ int run(const Options& o) {
     struct Run {
       std::unique_ptr<GlRenderer> renderer;
       Image img;
-      double firstMs = 0;
+      double firstMs = 0, cpuMs = 0;
       long long blended = 0;
       std::vector<double> total, shadow, pass, resolve, text, readback, aa, sum;
     };
@@ -176,7 +185,9 @@ int run(const Options& o) {
     for (int k = 0; k < o.frames; ++k)
       for (Run& r : runs) {
         const auto t0 = Clock::now();
+        const double c0 = cpuMs();
         r.renderer->render(views, r.img);
+        r.cpuMs += cpuMs() - c0;
         r.total.push_back(msSince(t0));
       }
     for (int k = 0; k < o.split; ++k)
@@ -209,6 +220,7 @@ int run(const Options& o) {
       std::printf("  first      %.2f ms (shader compilation, uploads)\n", r.firstMs);
       std::printf("  frame      median %.2f ms  min %.2f  max %.2f  mean %.2f  (%d frames)\n", st.median, st.min, st.max,
                   st.mean, o.frames);
+      std::printf("  cpu        %.2f ms a frame, all threads (mean)\n", r.cpuMs / o.frames);
       if (o.split > 0) {
         auto line = [](const char* name, const std::vector<double>& v) {
           const Stats s = stats(v);
