@@ -29,7 +29,7 @@ layout(location = 1) in vec3 aNormal;
 layout(location = 2) in float aCap;
 layout(location = 3) in vec4 iRot;          // quaternion x, y, z, w
 layout(location = 4) in vec4 iPosStretch;   // position, capsule stretch
-layout(location = 5) in vec4 iScaleFlags;   // scale, flags
+layout(location = 5) in vec4 iScaleFlags;   // scale, flags (which program draws it: unused here)
 layout(location = 6) in vec4 iColour;       // rgb, highlight
 uniform mat4 uViewProj;
 uniform mat4 uLightMatrix;
@@ -39,7 +39,6 @@ out vec3 vWorld;
 out vec3 vNormal;
 out vec3 vColour;
 out float vHighlight;
-flat out int vFlags;
 vec3 qrot(vec4 q, vec3 v) { return v + 2.0 * cross(q.xyz, cross(q.xyz, v) + q.w * v); }
 void main() {
   vec3 local = aPos * iScaleFlags.xyz + vec3(0.0, aCap * iPosStretch.w, 0.0);
@@ -47,23 +46,22 @@ void main() {
   vNormal = qrot(iRot, aNormal / iScaleFlags.xyz);   // inverse-transpose of a scale is its inverse
   vColour = iColour.rgb;
   vHighlight = iColour.a;
-  vFlags = int(iScaleFlags.w + 0.5);
   gl_Position = uViewProj * vec4(vWorld, 1.0);
   // The light's projection is orthographic, so its coordinates interpolate exactly.
   vShadow = (uLightMatrix * vec4(vWorld + normalize(vNormal) * uNormalBias, 1.0)).xyz * 0.5 + 0.5;
 }
 )";
 
-// Compiled three times with MODE 0 (lit), 1 (overlay: flat) and 2 (depth only, the shadow
-// pass): llvmpipe runs both sides of a branch on a uniform, so one program with a mode uniform
-// made the shadow pass pay for the lighting.
+// Compiled four times: MODE 0 (lit) with GRID 0 (bodies) and GRID 1 (statics flagged kGrid: the
+// grid on upward faces), MODE 1 (overlay: flat) and MODE 2 (depth only, the shadow pass): llvmpipe
+// runs both sides of a branch, even on a uniform, so one program with a mode uniform made the
+// shadow pass pay for the lighting, and one with a grid branch made every body pay for the grid.
 const char* kMeshFS = R"(
 in vec3 vShadow;
 in vec3 vWorld;
 in vec3 vNormal;
 in vec3 vColour;
 in float vHighlight;
-flat in int vFlags;
 uniform vec3 uEye;
 uniform vec3 uLightDir;         // the direction light travels
 uniform sampler2DShadow uShadowMap;
@@ -95,7 +93,8 @@ void main() {
   fragColour = vec4(shade, lumaAlpha(shade, 0.0));
 #else
   vec3 albedo = vColour;
-  bool grid = (vFlags & 1) != 0 && n.y > 0.5;
+#if GRID
+  bool grid = n.y > 0.5;
   if (grid) {
     // Anti-aliased grid lines every metre, stronger every five, fading where a pixel spans a line.
     vec2 w = fwidth(vWorld.xz);
@@ -106,6 +105,9 @@ void main() {
     float major = 1.0 - min(min(g5.x, g5.y) / 1.5, 1.0);
     albedo *= 1.0 - 0.22 * max(minor, major);
   }
+#else
+  const bool grid = false;
+#endif
   albedo = mix(albedo, vec3(1.0, 0.9, 0.3), 0.35 * vHighlight);
   vec3 L = -uLightDir;
   float ndl = max(dot(n, L), 0.0);
@@ -313,7 +315,7 @@ struct GlRenderer::Impl {
     GLuint fbo = 0, tex = 0;
   };
   std::vector<ShadowMap> shadowMaps;  // one per view of a frame, made on first use
-  GLuint meshProg = 0, flatProg = 0, depthProg = 0, skyProg = 0, textProg = 0;
+  GLuint meshProg = 0, gridProg = 0, flatProg = 0, depthProg = 0, skyProg = 0, textProg = 0;
   GLuint instanceVbo = 0, emptyVao = 0, textVao = 0, textVbo = 0;
   std::vector<std::vector<GpuMesh>> primitives;  // by mesh id, then level of detail (round ones)
   std::map<const Mesh*, GpuMesh> custom;  // keyed by the model's mesh, uploaded on first use
@@ -395,9 +397,10 @@ struct GlRenderer::Impl {
 
   // Draws instances grouped by mesh and level of detail with one instanced call per group.
   // Within a group, nearest first: hidden fragments then fail the depth test early.
-  // With `finest`, no instance is drawn finer than that scale would draw it.
-  void drawInstances(const std::vector<Instance>& all, const DrawList& dl, bool shadowCasters, const PixelScale& scale,
-                     const PixelScale* finest = nullptr) {
+  // The instances with none of the `skip` flags and all of the `need` flags. With `finest`, no
+  // instance is drawn finer than that scale would draw it.
+  void drawInstances(const std::vector<Instance>& all, const DrawList& dl, uint32_t skip, uint32_t need,
+                     const PixelScale& scale, const PixelScale* finest = nullptr) {
     struct Item {
       const Instance* in;
       int level;
@@ -406,7 +409,7 @@ struct GlRenderer::Impl {
     std::vector<Item> list;
     list.reserve(all.size());
     for (const Instance& in : all)
-      if (!shadowCasters || !(in.flags & kNoShadow))
+      if (!(in.flags & skip) && (in.flags & need) == need)
         list.push_back({&in, finest ? std::min(levelOf(in, scale), levelOf(in, *finest)) : levelOf(in, scale),
                         (in.position - scale.eye).squaredNorm()});
     if (list.empty()) return;
@@ -521,7 +524,7 @@ struct GlRenderer::Impl {
     // A caster finer than what receives its shadow would stand out of the receiver's facets and
     // shade their middles (acne): casters are never finer than the view draws them.
     const PixelScale screen = screenScale(dl, vp);
-    drawInstances(dl.solids, dl, true, texels, &screen);
+    drawInstances(dl.solids, dl, kNoShadow, 0, texels, &screen);
     glDisable(GL_POLYGON_OFFSET_FILL);
   }
 
@@ -548,23 +551,31 @@ struct GlRenderer::Impl {
     // Solids.
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LESS);
-    glUseProgram(meshProg);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, sm.tex);
-    glUniform1i(glGetUniformLocation(meshProg, "uShadowMap"), 0);
-    glUniformMatrix4fv(glGetUniformLocation(meshProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
-    glUniformMatrix4fv(glGetUniformLocation(meshProg, "uLightMatrix"), 1, GL_FALSE, light.data());
-    glUniform3fv(glGetUniformLocation(meshProg, "uEye"), 1, dl.camera.eye.data());
-    const Vec3f ld = dl.lightDirection.normalized();
-    glUniform3fv(glGetUniformLocation(meshProg, "uLightDir"), 1, ld.data());
-    glUniform1i(glGetUniformLocation(meshProg, "uShadows"), shadows ? 1 : 0);
-    glUniform1f(glGetUniformLocation(meshProg, "uNormalBias"), 1.5f * texelWorld);
-    glUniform3fv(glGetUniformLocation(meshProg, "uHorizon"), 1, kHorizon.data());
     const float dist = (dl.camera.eye - dl.camera.target).norm();
     const float fog[2] = {std::max(3 * dist, 30.0f), std::max(12 * dist, 150.0f)};
-    glUniform2fv(glGetUniformLocation(meshProg, "uFog"), 1, fog);
+    const Vec3f ld = dl.lightDirection.normalized();
+    auto useLit = [&](GLuint prog) {
+      glUseProgram(prog);
+      glUniform1i(glGetUniformLocation(prog, "uShadowMap"), 0);
+      glUniformMatrix4fv(glGetUniformLocation(prog, "uViewProj"), 1, GL_FALSE, viewProj.data());
+      glUniformMatrix4fv(glGetUniformLocation(prog, "uLightMatrix"), 1, GL_FALSE, light.data());
+      glUniform3fv(glGetUniformLocation(prog, "uEye"), 1, dl.camera.eye.data());
+      glUniform3fv(glGetUniformLocation(prog, "uLightDir"), 1, ld.data());
+      glUniform1i(glGetUniformLocation(prog, "uShadows"), shadows ? 1 : 0);
+      glUniform1f(glGetUniformLocation(prog, "uNormalBias"), 1.5f * texelWorld);
+      glUniform3fv(glGetUniformLocation(prog, "uHorizon"), 1, kHorizon.data());
+      glUniform2fv(glGetUniformLocation(prog, "uFog"), 1, fog);
+    };
     const PixelScale pixels = screenScale(dl, vp);
-    drawInstances(dl.solids, dl, false, pixels);
+    // The bodies, then the gridded statics (the ground) with the program that draws the grid:
+    // llvmpipe would run the grid's code for every fragment of one program with a branch, and
+    // ground drawn last is not shaded where bodies cover it.
+    useLit(meshProg);
+    drawInstances(dl.solids, dl, kGrid, 0, pixels);
+    useLit(gridProg);
+    drawInstances(dl.solids, dl, 0, kGrid, pixels);
 
     // The sky where no solid is: at the far plane, passing the depth test only where the depth
     // is still the cleared 1.
@@ -583,7 +594,7 @@ struct GlRenderer::Impl {
       glUseProgram(flatProg);
       glUniformMatrix4fv(glGetUniformLocation(flatProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
       glUniform3fv(glGetUniformLocation(flatProg, "uEye"), 1, dl.camera.eye.data());
-      drawInstances(dl.overlays, dl, false, pixels);
+      drawInstances(dl.overlays, dl, 0, 0, pixels);
     }
     glDisable(GL_SCISSOR_TEST);
   }
@@ -744,10 +755,13 @@ GlRenderer::GlRenderer(int width, int height, const RendererOptions& options)
   m.skyUnder = m.samples > 1 && m.antiAliasing == AntiAliasing::None;
   const std::string header =
       std::string("#version 330 core\n#define COVERAGE_ALPHA ") + (m.skyUnder ? "1" : "0") + "\n";
-  auto meshVariant = [&](int mode) { return header + "#define MODE " + std::to_string(mode) + "\n" + kMeshFS; };
-  m.meshProg = link(kMeshVS, meshVariant(0).c_str(), "mesh");
-  m.flatProg = link(kMeshVS, meshVariant(1).c_str(), "overlay");
-  m.depthProg = link(kMeshVS, meshVariant(2).c_str(), "shadow");
+  auto meshVariant = [&](int mode, bool grid) {
+    return header + "#define MODE " + std::to_string(mode) + "\n#define GRID " + (grid ? "1" : "0") + "\n" + kMeshFS;
+  };
+  m.meshProg = link(kMeshVS, meshVariant(0, false).c_str(), "mesh");
+  m.gridProg = link(kMeshVS, meshVariant(0, true).c_str(), "gridded mesh");
+  m.flatProg = link(kMeshVS, meshVariant(1, false).c_str(), "overlay");
+  m.depthProg = link(kMeshVS, meshVariant(2, false).c_str(), "shadow");
   m.skyProg = link(kSkyVS, (header + kSkyFS).c_str(), "sky");
   m.textProg = link(kTextVS, kTextFS, "text");
 
