@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 
@@ -88,6 +89,106 @@ void VideoSink::commit() {
   std::error_code ec;
   fs::rename(temp_, path_, ec);
   if (ec) throw std::runtime_error(path_ + ": cannot rename " + temp_ + " into place: " + ec.message());
+}
+
+namespace {
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+ThreadedSink::ThreadedSink(std::unique_ptr<FrameSink> inner, int depth)
+    : inner_(std::move(inner)), depth_(static_cast<size_t>(std::max(depth, 1))), thread_([this] { run(); }) {}
+
+ThreadedSink::~ThreadedSink() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+    queue_.clear();
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();  // after the frame being written
+}
+
+void ThreadedSink::run() {
+  std::unique_lock<std::mutex> lock(mu_);
+  for (;;) {
+    cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+    if (stop_) return;
+    Image frame = std::move(queue_.front());
+    queue_.pop_front();
+    busy_ = true;
+    lock.unlock();
+    const auto t0 = std::chrono::steady_clock::now();
+    std::exception_ptr error;
+    try {
+      inner_->write(frame);
+    } catch (...) {
+      error = std::current_exception();
+    }
+    const double took = secondsSince(t0);
+    lock.lock();
+    writing_ += took;
+    busy_ = false;
+    spare_.push_back(std::move(frame));
+    if (error) {
+      error_ = error;
+      queue_.clear();  // frames after a failed one are not written
+      cv_.notify_all();
+      return;
+    }
+    cv_.notify_all();
+  }
+}
+
+void ThreadedSink::rethrowLocked() {
+  if (error_) std::rethrow_exception(error_);
+}
+
+void ThreadedSink::pass(Image& frame) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock(mu_);
+  cv_.wait(lock, [this] { return error_ || queue_.size() < depth_; });
+  waited_ += secondsSince(t0);
+  rethrowLocked();
+  queue_.push_back(std::move(frame));
+  if (spare_.empty()) {
+    frame = Image();
+  } else {
+    frame = std::move(spare_.back());
+    spare_.pop_back();
+  }
+  lock.unlock();
+  cv_.notify_all();
+}
+
+void ThreadedSink::write(const Image& frame) {
+  Image copy = frame;
+  pass(copy);
+}
+
+double ThreadedSink::writeSeconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return writing_;
+}
+
+double ThreadedSink::waitedSeconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return waited_;
+}
+
+void ThreadedSink::commit() {
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [this] { return error_ || (queue_.empty() && !busy_); });
+    rethrowLocked();
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+  const auto t0 = std::chrono::steady_clock::now();
+  inner_->commit();
+  writing_ += secondsSince(t0);
 }
 
 }  // namespace substep::render

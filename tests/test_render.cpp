@@ -741,6 +741,52 @@ TEST(Video, AFailingFfmpegIsReportedAndLeavesNoFile) {
   EXPECT_FALSE(fs::exists(f));
 }
 
+// The conversion to yuv420p: BT.601 at limited range, as ffmpeg's; U and V of each 2x2 block.
+TEST(Video, Yuv420IsBt601LimitedRangeAsFfmpegMakesIt) {
+  auto yuv = [](uint32_t rgba) {
+    std::vector<uint8_t> out;
+    rgbaToYuv420(Image(2, 2, rgba), out);
+    EXPECT_EQ(out.size(), 6u);
+    return std::vector<int>{out[0], out[4], out[5]};
+  };
+  EXPECT_EQ(yuv(0xffffffffu), (std::vector<int>{235, 128, 128}));
+  EXPECT_EQ(yuv(0x000000ffu), (std::vector<int>{16, 128, 128}));
+  EXPECT_EQ(yuv(0xff0000ffu), (std::vector<int>{81, 90, 240}));
+  EXPECT_EQ(yuv(0x00ff00ffu), (std::vector<int>{145, 54, 34}));
+  EXPECT_EQ(yuv(0x0000ffffu), (std::vector<int>{41, 240, 110}));
+  // A 4x2 frame: left block red, right block blue; Y per pixel, U and V per block.
+  Image img(4, 2, 0xff0000ffu);
+  for (int y = 0; y < 2; ++y)
+    for (int x = 2; x < 4; ++x) img.pixel(x, y)[0] = 0, img.pixel(x, y)[2] = 255;
+  std::vector<uint8_t> out;
+  rgbaToYuv420(img, out);
+  EXPECT_EQ(out, (std::vector<uint8_t>{81, 81, 41, 41, 81, 81, 41, 41, 90, 240, 240, 110}));
+  // A rendered frame, against ffmpeg's own conversion when there is one: the same Y, U and V
+  // within 1 level but at a few sharp colour edges (ffmpeg's vertical chroma filter is longer).
+  const std::string ffmpeg = findFfmpeg();
+  if (ffmpeg.empty()) GTEST_SKIP() << "ffmpeg is not installed";
+  const Image frame = readPng(SUBSTEP_SOURCE_DIR "/tests/snapshots/shapes_contacts.png");
+  const fs::path raw = scratch("frame.rgba"), converted = scratch("frame.yuv");
+  { std::ofstream(raw, std::ios::binary).write(reinterpret_cast<const char*>(frame.rgba.data()), static_cast<std::streamsize>(frame.rgba.size())); }
+  const std::string cmd = ffmpeg + " -v error -y -f rawvideo -pix_fmt rgba -s " + std::to_string(frame.width) + "x" +
+                          std::to_string(frame.height) + " -i " + raw.string() + " -f rawvideo -pix_fmt yuv420p " +
+                          converted.string();
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::ifstream in(converted, std::ios::binary);
+  const std::vector<uint8_t> theirs((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  rgbaToYuv420(frame, out);
+  ASSERT_EQ(theirs.size(), out.size());
+  const size_t luma = static_cast<size_t>(frame.width) * frame.height;
+  long long chromaOff = 0;
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (i < luma)
+      ASSERT_EQ(out[i], theirs[i]) << "Y at " << i;
+    else
+      chromaOff += std::abs(int(out[i]) - int(theirs[i])) > 1;
+  }
+  EXPECT_LT(chromaOff, static_cast<long long>(luma / 2 / 100));  // under 1 % of U and V samples
+}
+
 // ---- frame sinks ----
 
 // Every sink's output appears at commit() and not before; dropped before it, nothing is left.
@@ -800,4 +846,53 @@ TEST(FrameSinks, OutputAppearsAtCommitAndNothingIsLeftWithout) {
   video.commit();
   EXPECT_GT(fs::file_size(d / "v.mp4"), 0u);
   EXPECT_EQ(listing(d), (std::vector<std::string>{"frames", "one.png", "v.mp4"}));
+}
+
+// A sink on its own thread writes every frame in order, hands buffers back for reuse, commits
+// only when all are written, and leaves nothing when dropped; an error comes out of the next call.
+TEST(FrameSinks, AThreadedSinkWritesEveryFrameInOrderBesideTheCaller) {
+  using substep_test::listing;
+  const fs::path d = substep_test::emptyScratchFolder("test_render_threaded");
+  {
+    ThreadedSink dropped(std::make_unique<PngFolderSink>((d / "dropped").string()));
+    Image f(8, 4, 0x102030ffu);
+    dropped.pass(f);
+  }
+  EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+
+  ThreadedSink sink(std::make_unique<PngFolderSink>((d / "frames").string()), 2);
+  Image frame;
+  for (int k = 0; k < 6; ++k) {
+    if (frame.empty()) frame = Image(8, 4);
+    std::fill(frame.rgba.begin(), frame.rgba.end(), static_cast<uint8_t>(40 * k));
+    for (size_t i = 3; i < frame.rgba.size(); i += 4) frame.rgba[i] = 255;
+    sink.pass(frame);  // frame now holds a spare buffer (empty at first)
+  }
+  sink.write(Image(8, 4, 0xffffffffu));  // a copy
+  sink.commit();
+  std::vector<std::string> expected;
+  for (int k = 0; k < 7; ++k) expected.push_back(PngFolderSink::frameName(k));
+  EXPECT_EQ(listing(d / "frames"), expected);
+  for (int k = 0; k < 6; ++k)
+    EXPECT_EQ(readPng((d / "frames" / PngFolderSink::frameName(k)).string()).rgba[0], 40 * k) << k;
+  EXPECT_GE(sink.writeSeconds(), 0.0);
+
+  // The inner sink failing (ffmpeg gone): the error comes out of pass() or commit(), and the
+  // output is not left behind.
+  {
+    ThreadedSink bad(std::make_unique<VideoSink>("/bin/false", (d / "bad.mp4").string(), 64, 48, VideoOptions{}));
+    bool thrown = false;
+    try {
+      for (int k = 0; k < 200; ++k) {
+        Image f(64, 48);
+        bad.pass(f);
+      }
+      bad.commit();
+    } catch (const VideoError& e) {
+      thrown = true;
+      EXPECT_NE(std::string(e.what()).find("ffmpeg"), std::string::npos) << e.what();
+    }
+    EXPECT_TRUE(thrown);
+  }
+  EXPECT_EQ(listing(d), std::vector<std::string>{"frames"});
 }
