@@ -37,8 +37,8 @@ uniform float uNormalBias;
 out vec3 vShadow;
 out vec3 vWorld;
 out vec3 vNormal;
-out vec3 vColour;
-out float vHighlight;
+flat out vec3 vColour;      // per instance: not interpolated (llvmpipe pays per component and pixel)
+flat out float vHighlight;
 vec3 qrot(vec4 q, vec3 v) { return v + 2.0 * cross(q.xyz, cross(q.xyz, v) + q.w * v); }
 void main() {
   vec3 local = aPos * iScaleFlags.xyz + vec3(0.0, aCap * iPosStretch.w, 0.0);
@@ -60,8 +60,8 @@ const char* kMeshFS = R"(
 in vec3 vShadow;
 in vec3 vWorld;
 in vec3 vNormal;
-in vec3 vColour;
-in float vHighlight;
+flat in vec3 vColour;
+flat in float vHighlight;
 uniform vec3 uEye;
 uniform vec3 uLightDir;         // the direction light travels
 uniform sampler2DShadow uShadowMap;
@@ -87,7 +87,9 @@ void main() {
 #else
   vec3 n = normalize(vNormal);
   if (!gl_FrontFacing) n = -n;   // the inside of a bowl, or a mesh wound the other way
-  vec3 v = normalize(uEye - vWorld);
+  vec3 toEye = uEye - vWorld;
+  float eyeDist2 = dot(toEye, toEye), invEyeDist = inversesqrt(eyeDist2);
+  vec3 v = toEye * invEyeDist;
 #if MODE == 1
   vec3 shade = vColour * (0.55 + 0.45 * abs(dot(n, v)));
   fragColour = vec4(shade, lumaAlpha(shade, 0.0));
@@ -126,7 +128,7 @@ void main() {
   vec3 col = albedo * (ambient + 0.78 * ndl * sh * vec3(1.0, 0.97, 0.9)) + spec * sh;
   float rim = 1.0 - max(dot(n, v), 0.0);
   col += vHighlight * rim * rim * vec3(1.0, 0.8, 0.2);
-  col = mix(col, uHorizon, smoothstep(uFog.x, uFog.y, length(uEye - vWorld)));
+  col = mix(col, uHorizon, smoothstep(uFog.x, uFog.y, eyeDist2 * invEyeDist));
   fragColour = vec4(col, lumaAlpha(col, grid ? 1.0 : 0.0));
 #endif
 #endif
