@@ -75,7 +75,12 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
   const size_t P = static_cast<size_t>(W) + 2;
   plane.resize(P * static_cast<size_t>(H));
   edges.resize(static_cast<size_t>(W) + 8);
-  for (int y = 0; y < H; ++y) alphaRow(row(y), &plane[static_cast<size_t>(y) * P + 1], W);
+  // Filled a little ahead of the rows being filtered (the search reaches kSearchReach rows
+  // down), so each row of the frame is read while it is still in the cache.
+  int filled = 0;
+  auto fillTo = [&](int y) {
+    for (; filled < std::min(y, H); ++filled) alphaRow(row(filled), &plane[static_cast<size_t>(filled) * P + 1], W);
+  };
   auto alphas = [&](int y) { return &plane[static_cast<size_t>(y) * P + 1]; };
   auto L = [&](int x, int y) { return static_cast<int>(alphas(y)[x] >> 1); };  // luma 0-127
   uint8_t* const edge = edges.data();
@@ -84,6 +89,7 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
   const int share256 = static_cast<int>(std::lround(options.edgeThreshold * 256));
 
   for (int y = 0; y < H; ++y) {
+    fillTo(y + kSearchReach + 2);
     const uint8_t* in = row(y);
     uint8_t* out = &dst.rgba[static_cast<size_t>(y) * W * 4];
     opaqueRow(in, out, W);

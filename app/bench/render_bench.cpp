@@ -123,7 +123,9 @@ int run(const Options& o) {
   int width = 0, height = 0;
   parseFrameSize(o.size, width, height);
   std::vector<std::string> files = o.scenes;
-  if (files.empty()) files = {assetsDir() + "/scenes/pyramid.json", assetsDir() + "/scenes/pile.json"};
+  if (files.empty())
+    files = {assetsDir() + "/scenes/pyramid.json", assetsDir() + "/scenes/pile.json",
+             assetsDir() + "/scenes/ragdoll_pile.json"};
   std::vector<std::shared_ptr<const Scene>> scenes;
   for (const std::string& f : files) scenes.push_back(std::make_shared<const Scene>(load(f)));  // all checked before any work
 
@@ -253,7 +255,7 @@ int main(int argc, char** argv) {
       "Steps each scene to --at, builds its draw list once and draws it --frames times; prints median, min and max,\n"
       "and the stages (shadow, scene, resolve, text, read-back, anti-aliasing) of --split more frames each ended\nwith glFinish.\n"
       "llvmpipe's threads: LP_NUM_THREADS (2 when unset)."};
-  app.add_option("scenes", o.scenes, "Scene files (default: assets/scenes/pyramid.json and pile.json)")
+  app.add_option("scenes", o.scenes, "Scene files (default: assets/scenes/pyramid.json, pile.json and ragdoll_pile.json)")
       ->check(CLI::ExistingFile);
   app.add_option("--at", o.at, "Simulated time to step each scene to before drawing [s] (default 2)")
       ->check(CLI::Range(0.0, 1e4));
