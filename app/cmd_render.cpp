@@ -100,7 +100,8 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
       d.printHeader(session);
 
       // Draw time apart from the first frame, which includes compiling the shaders.
-      double renderSeconds = 0, firstDrawSeconds = 0, writeSeconds = 0, waitPhysics = 0, waitWriting = 0;
+      double renderSeconds = 0, firstDrawSeconds = 0, finishSeconds = 0, writeSeconds = 0, waitPhysics = 0,
+             waitWriting = 0;
       const double wall0 = nowSeconds();
       std::string info;
       {
@@ -126,27 +127,25 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
         }
         const std::unique_ptr<GlRenderer> renderer = d.makeRenderer(width, height);
         info = renderer->glInfo();
-        Image img;  // reused: a fresh 3.7 MB frame each time costs milliseconds in page faults
-        auto draw = [&](const std::vector<DrawList>& lists, long long k) {
-          const double r0 = nowSeconds();
-          renderer->render(gridViews(lists, width, height), img);
-          (k == 0 ? firstDrawSeconds : renderSeconds) += nowSeconds() - r0;
-        };
-
         if (kind == OutputKind::Png) {
           // A single frame far into a run is mostly stepping: show progress over the steps then.
           advanceShowingSteps(session, o.at.value_or(0.0), d.quiet);
           if (const Panel* p = session.firstDiverged()) return reportDivergence("substep render", *p);
           stopIfInterrupted();
-          draw(session.drawLists(), 0);
+          Image img;
+          const double r0 = nowSeconds();
+          renderer->render(gridViews(session.drawLists(), width, height), img);
+          firstDrawSeconds = nowSeconds() - r0;
           const double w0 = nowSeconds();
           sink->write(img);
           sink->commit();
           writeSeconds = nowSeconds() - w0;
         } else {
           // Three threads: the physics steps ahead (render/ahead.h), this one draws, and the
-          // frames drawn are written (piped to ffmpeg, or encoded as PNG) beside the drawing.
+          // frames drawn are anti-aliased and written (piped to ffmpeg, or encoded as PNG) beside
+          // the drawing of the next.
           ThreadedSink out(std::move(sink));
+          RawFrame raw;  // buffers go round between the threads: no page faults per frame
           std::vector<double> times(static_cast<size_t>(frames));
           for (long long k = 0; k < frames; ++k) times[static_cast<size_t>(k)] = static_cast<double>(k) / o.fps;
           SessionAhead ahead(session, std::move(times));
@@ -158,14 +157,17 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
               ahead.stop();
               return reportDivergence("substep render", *session.firstDiverged());
             }
-            draw(f.lists, k);
-            out.pass(img);
+            const double r0 = nowSeconds();
+            renderer->draw(gridViews(f.lists, width, height), raw);
+            (k == 0 ? firstDrawSeconds : renderSeconds) += nowSeconds() - r0;
+            out.pass(raw);
             if (!d.quiet) progress.update(k + 1);
           }
           if (!d.quiet) progress.finish();
           ahead.stop();
           out.commit();
           writeSeconds = out.writeSeconds();
+          finishSeconds = out.finishSeconds();
           waitPhysics = ahead.waitedSeconds();
           waitWriting = out.waitedSeconds();
         }
@@ -190,8 +192,9 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
                     << (steps ? 1e3 * physics / steps : 0.0) << " ms each), draw ";
           if (frames > 1) std::cout << 1e3 * renderSeconds / (frames - 1) << " ms (the first ";
           std::cout << 1e3 * firstDrawSeconds << " ms" << (frames > 1 ? ", with shader compilation)" : "")
-                    << ", write " << 1e3 * writeSeconds / frames << " ms\n"
-                    << "          on three threads: physics ahead of the drawing, writing beside it; the drawing waited "
+                    << ", anti-aliasing " << 1e3 * finishSeconds / frames << " ms, write " << 1e3 * writeSeconds / frames
+                    << " ms\n"
+                    << "          on three threads: physics ahead of the drawing, anti-aliasing and writing beside it; the drawing waited "
                     << 1e3 * waitPhysics / frames << " ms for physics and " << 1e3 * waitWriting / frames
                     << " ms for the writing\n"
                     << "rate      " << frames << " frames in " << wall << " s: " << std::setprecision(1)

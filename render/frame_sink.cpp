@@ -115,22 +115,32 @@ void ThreadedSink::run() {
   for (;;) {
     cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
     if (stop_) return;
-    Image frame = std::move(queue_.front());
+    Job job = std::move(queue_.front());
     queue_.pop_front();
     busy_ = true;
     lock.unlock();
-    const auto t0 = std::chrono::steady_clock::now();
     std::exception_ptr error;
+    double finishing = 0, writing = 0;
     try {
-      inner_->write(frame);
+      auto t0 = std::chrono::steady_clock::now();
+      if (job.isRaw) {
+        finishFrame(job.raw, finished_);
+        finishing = secondsSince(t0);
+        t0 = std::chrono::steady_clock::now();
+      }
+      inner_->write(job.isRaw ? finished_ : job.image);
+      writing = secondsSince(t0);
     } catch (...) {
       error = std::current_exception();
     }
-    const double took = secondsSince(t0);
     lock.lock();
-    writing_ += took;
+    finishing_ += finishing;
+    writing_ += writing;
     busy_ = false;
-    spare_.push_back(std::move(frame));
+    if (job.isRaw)
+      spareRaw_.push_back(std::move(job.raw));
+    else
+      spare_.push_back(std::move(job.image));
     if (error) {
       error_ = error;
       queue_.clear();  // frames after a failed one are not written
@@ -145,26 +155,48 @@ void ThreadedSink::rethrowLocked() {
   if (error_) std::rethrow_exception(error_);
 }
 
-void ThreadedSink::pass(Image& frame) {
+ThreadedSink::Job ThreadedSink::push(Job job) {
   const auto t0 = std::chrono::steady_clock::now();
   std::unique_lock<std::mutex> lock(mu_);
   cv_.wait(lock, [this] { return error_ || queue_.size() < depth_; });
   waited_ += secondsSince(t0);
   rethrowLocked();
-  queue_.push_back(std::move(frame));
-  if (spare_.empty()) {
-    frame = Image();
-  } else {
-    frame = std::move(spare_.back());
+  Job spare;
+  spare.isRaw = job.isRaw;
+  if (job.isRaw && !spareRaw_.empty()) {
+    spare.raw = std::move(spareRaw_.back());
+    spareRaw_.pop_back();
+  } else if (!job.isRaw && !spare_.empty()) {
+    spare.image = std::move(spare_.back());
     spare_.pop_back();
   }
+  queue_.push_back(std::move(job));
   lock.unlock();
   cv_.notify_all();
+  return spare;
+}
+
+void ThreadedSink::pass(Image& frame) {
+  Job job;
+  job.image = std::move(frame);
+  frame = push(std::move(job)).image;
+}
+
+void ThreadedSink::pass(RawFrame& frame) {
+  Job job;
+  job.raw = std::move(frame);
+  job.isRaw = true;
+  frame = push(std::move(job)).raw;
 }
 
 void ThreadedSink::write(const Image& frame) {
   Image copy = frame;
   pass(copy);
+}
+
+double ThreadedSink::finishSeconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return finishing_;
 }
 
 double ThreadedSink::writeSeconds() const {

@@ -177,4 +177,17 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
   return stats;
 }
 
+FxaaStats finishFrame(const RawFrame& frame, Image& out) {
+  const long stride = 4L * frame.width;
+  if (frame.width <= 0 || frame.height <= 0) {
+    out = Image();
+    return {};
+  }
+  // GL's rows run bottom-up: the image's row y is GL's row height - 1 - y.
+  const uint8_t* top = frame.rgba.data() + stride * (frame.height - 1);
+  if (frame.fxaa) return fxaa(top, -stride, frame.width, frame.height, out, frame.keep);
+  copyOpaque(top, -stride, frame.width, frame.height, out);
+  return {};
+}
+
 }  // namespace substep::render

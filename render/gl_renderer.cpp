@@ -312,7 +312,7 @@ struct GlRenderer::Impl {
   GLuint sceneFbo = 0, sceneColour = 0, sceneDepth = 0;
   GLuint msFbo = 0, msColour = 0, msDepth = 0;
   GLuint drawFbo = 0;
-  std::vector<uint8_t> readback;        // the frame as GL holds it, rows bottom-up
+  RawFrame raw;                         // render()'s frame as read back, reused
   std::vector<PixelRect> textRects;     // this frame's text panels, kept out of the anti-aliasing
   struct ShadowMap {
     GLuint fbo = 0, tex = 0;
@@ -829,6 +829,17 @@ Image GlRenderer::render(const std::vector<View>& views) {
 
 void GlRenderer::render(const std::vector<View>& views, Image& img, FrameTimings* timings) {
   Impl& m = *impl_;
+  draw(views, m.raw, timings);
+  const auto t0 = std::chrono::steady_clock::now();
+  const FxaaStats st = finishFrame(m.raw, img);
+  if (timings) {
+    timings->antiAliasing = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    timings->blendedPixels = st.edgePixels;
+  }
+}
+
+void GlRenderer::draw(const std::vector<View>& views, RawFrame& out, FrameTimings* timings) {
+  Impl& m = *impl_;
   m.makeCurrent();
   m.timings = timings;
   if (timings) {
@@ -878,22 +889,16 @@ void GlRenderer::render(const std::vector<View>& views, Image& img, FrameTimings
   glDisable(GL_BLEND);
   m.lap(&FrameTimings::text);
 
-  const size_t stride = static_cast<size_t>(width_) * 4;
-  m.readback.resize(stride * static_cast<size_t>(height_));
+  out.width = width_;
+  out.height = height_;
+  out.rgba.resize(static_cast<size_t>(width_) * 4 * static_cast<size_t>(height_));
   glBindFramebuffer(GL_READ_FRAMEBUFFER, m.sceneFbo);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, m.readback.data());
+  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
   if (const GLenum err = glGetError(); err != GL_NO_ERROR) throw RenderError("GL error " + std::to_string(err) + " while drawing");
+  out.keep = m.textRects;
+  out.fxaa = m.antiAliasing == AntiAliasing::Fxaa;
   m.lap(&FrameTimings::readback);
-  // GL's rows run bottom-up: the image's row y is GL's row height - 1 - y.
-  const uint8_t* top = m.readback.data() + stride * static_cast<size_t>(height_ - 1);
-  if (m.antiAliasing == AntiAliasing::Fxaa) {
-    const FxaaStats st = fxaa(top, -static_cast<long>(stride), width_, height_, img, m.textRects);
-    if (timings) timings->blendedPixels = st.edgePixels;
-  } else {
-    copyOpaque(top, -static_cast<long>(stride), width_, height_, img);
-  }
-  m.lap(&FrameTimings::antiAliasing);
   m.timings = nullptr;
 }
 

@@ -877,6 +877,21 @@ TEST(FrameSinks, AThreadedSinkWritesEveryFrameInOrderBesideTheCaller) {
     EXPECT_EQ(readPng((d / "frames" / PngFolderSink::frameName(k)).string()).rgba[0], 40 * k) << k;
   EXPECT_GE(sink.writeSeconds(), 0.0);
 
+  // Raw frames (bottom-up, as read back) are finished on the sink's thread: flipped, opaque.
+  ThreadedSink rawSink(std::make_unique<PngFolderSink>((d / "raw").string()), 1);
+  RawFrame raw;
+  raw.width = 4, raw.height = 2, raw.fxaa = false;
+  raw.rgba.assign(32, 0);
+  for (int x = 0; x < 4; ++x) raw.rgba[4 * x] = 200;  // GL's row 0: the image's bottom row
+  rawSink.pass(raw);
+  EXPECT_TRUE(raw.rgba.empty());  // no spare yet
+  rawSink.commit();
+  const Image flipped = readPng((d / "raw" / PngFolderSink::frameName(0)).string());
+  EXPECT_EQ(flipped.pixel(0, 1)[0], 200);
+  EXPECT_EQ(flipped.pixel(0, 0)[0], 0);
+  EXPECT_EQ(flipped.pixel(0, 0)[3], 255);
+  EXPECT_GE(rawSink.finishSeconds(), 0.0);
+
   // The inner sink failing (ffmpeg gone): the error comes out of pass() or commit(), and the
   // output is not left behind.
   {
@@ -894,5 +909,5 @@ TEST(FrameSinks, AThreadedSinkWritesEveryFrameInOrderBesideTheCaller) {
     }
     EXPECT_TRUE(thrown);
   }
-  EXPECT_EQ(listing(d), std::vector<std::string>{"frames"});
+  EXPECT_EQ(listing(d), (std::vector<std::string>{"frames", "raw"}));
 }

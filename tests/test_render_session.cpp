@@ -11,6 +11,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 using namespace substep;
@@ -208,6 +209,12 @@ TEST(RenderSession, FrameIsTheDrawListsInAGrid) {
   EXPECT_EQ(views[1].list, &lists[1]);
   const uint8_t* border = img.pixel(79, 60);  // the dark column between the panels
   EXPECT_LT(border[0] + border[1] + border[2], 30);
+  // render() is draw() and finishFrame(), which may run on another thread.
+  RawFrame raw;
+  r.draw(views, raw);
+  Image finished;
+  std::thread([&] { finishFrame(raw, finished); }).join();
+  EXPECT_EQ(finished.rgba, img.rgba);
 }
 
 // Stepped ahead on its own thread, a session gives the same draw lists, in order, as stepped
