@@ -195,6 +195,30 @@ TEST(SceneBuilder, OneInstancePerBodyWithItsShapeAndPose) {
   EXPECT_TRUE(dl.overlays.empty());
 }
 
+// A ground that every other body lies on or above casts no shadow (it could shade nothing but
+// itself); the steps on it, and a ground with a body hanging below its top beside it, still do.
+TEST(SceneBuilder, GroundsBelowEverythingCastNoShadow) {
+  const Scene pile = scene("ragdoll_pile.json");
+  State settled = pile.initial;
+  auto flagsOf = [](const DrawList& dl, const Model& m, const std::string& name) {
+    for (const Instance& in : dl.solids)
+      if (in.body == m.bodyIndex(name)) return in.flags;
+    ADD_FAILURE() << name;
+    return 0u;
+  };
+  const DrawList dl = buildDrawList(pile.model, settled, nullptr, defaultCamera(pile), {}, {});
+  EXPECT_TRUE(flagsOf(dl, pile.model, "ground") & kNoShadow);
+  EXPECT_FALSE(flagsOf(dl, pile.model, "step_0") & kNoShadow);
+  for (const Instance& in : dl.solids)
+    if (!pile.model.bodies[static_cast<size_t>(in.body)].isStatic) EXPECT_FALSE(in.flags & kNoShadow);
+  // A body sunk 10 cm into the ground's top (beyond a resting contact): the ground casts again.
+  const int b = pile.model.bodyIndex("ragdoll_0_pelvis");
+  ASSERT_GE(b, 0);
+  settled.bodies[static_cast<size_t>(b)].x.y() = 0.0;
+  EXPECT_FALSE(flagsOf(buildDrawList(pile.model, settled, nullptr, defaultCamera(pile), {}, {}), pile.model, "ground") &
+               kNoShadow);
+}
+
 TEST(SceneBuilder, PlanesBecomeLargeQuadsFacingTheirNormal) {
   Scene s = parseScene(R"({"bodies": [
       {"name": "floor", "static": true, "shape": {"type": "plane", "normal": [0, 0, 1], "offset": 2}},
