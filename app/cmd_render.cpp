@@ -4,6 +4,7 @@
 #include "app/commands.h"
 #include "app/common.h"
 #include "app/render_options.h"
+#include "render/ahead.h"
 #include "render/frame_sink.h"
 
 #include <cctype>
@@ -99,7 +100,8 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
       d.printHeader(session);
 
       // Draw time apart from the first frame, which includes compiling the shaders.
-      double renderSeconds = 0, firstDrawSeconds = 0, writeSeconds = 0;
+      double renderSeconds = 0, firstDrawSeconds = 0, finishSeconds = 0, writeSeconds = 0, waitPhysics = 0,
+             waitWriting = 0;
       const double wall0 = nowSeconds();
       std::string info;
       {
@@ -125,32 +127,52 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
         }
         const std::unique_ptr<GlRenderer> renderer = d.makeRenderer(width, height);
         info = renderer->glInfo();
-
-        // A single frame far into a run is mostly stepping: show progress over the steps then.
-        const bool single = kind == OutputKind::Png;
-        Progress progress(single ? "simulate" : "render", single ? 1 : frames);
-        Image img;  // reused: a fresh 3.7 MB frame each time costs milliseconds in page faults
-        for (long long k = 0; k < frames; ++k) {
-          stopIfInterrupted();
-          if (single)
-            advanceShowingSteps(session, o.at.value_or(0.0), d.quiet);
-          else
-            session.advanceTo(static_cast<double>(k) / o.fps);
+        if (kind == OutputKind::Png) {
+          // A single frame far into a run is mostly stepping: show progress over the steps then.
+          advanceShowingSteps(session, o.at.value_or(0.0), d.quiet);
           if (const Panel* p = session.firstDiverged()) return reportDivergence("substep render", *p);
-          const std::vector<DrawList> lists = session.drawLists();
+          stopIfInterrupted();
+          Image img;
           const double r0 = nowSeconds();
-          renderer->render(gridViews(lists, width, height), img);
-          const double r1 = nowSeconds();
-          (k == 0 ? firstDrawSeconds : renderSeconds) += r1 - r0;
+          renderer->render(gridViews(session.drawLists(), width, height), img);
+          firstDrawSeconds = nowSeconds() - r0;
+          const double w0 = nowSeconds();
           sink->write(img);
-          writeSeconds += nowSeconds() - r1;
-          if (!d.quiet && !single) progress.update(k + 1);
+          sink->commit();
+          writeSeconds = nowSeconds() - w0;
+        } else {
+          // Three threads: the physics steps ahead (render/ahead.h), this one draws, and the
+          // frames drawn are anti-aliased and written (piped to ffmpeg, or encoded as PNG) beside
+          // the drawing of the next.
+          ThreadedSink out(std::move(sink));
+          RawFrame raw;  // buffers go round between the threads: no page faults per frame
+          std::vector<double> times(static_cast<size_t>(frames));
+          for (long long k = 0; k < frames; ++k) times[static_cast<size_t>(k)] = static_cast<double>(k) / o.fps;
+          SessionAhead ahead(session, std::move(times));
+          Progress progress("render", frames);
+          for (long long k = 0; k < frames; ++k) {
+            stopIfInterrupted();
+            const SessionAhead::Frame f = ahead.next();
+            if (f.diverged) {
+              ahead.stop();
+              return reportDivergence("substep render", *session.firstDiverged());
+            }
+            const double r0 = nowSeconds();
+            renderer->draw(gridViews(f.lists, width, height), raw);
+            (k == 0 ? firstDrawSeconds : renderSeconds) += nowSeconds() - r0;
+            out.pass(raw);
+            if (!d.quiet) progress.update(k + 1);
+          }
+          if (!d.quiet) progress.finish();
+          ahead.stop();
+          out.commit();
+          writeSeconds = out.writeSeconds();
+          finishSeconds = out.finishSeconds();
+          waitPhysics = ahead.waitedSeconds();
+          waitWriting = out.waitedSeconds();
         }
-        if (!d.quiet && !single) progress.finish();
-        const double w0 = nowSeconds();
-        sink->commit();
-        writeSeconds += nowSeconds() - w0;
       }
+      const double wall = nowSeconds() - wall0;
 
       if (!d.quiet) {
         long long steps = 0;
@@ -160,15 +182,27 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
         std::cout << std::fixed << std::setprecision(2);
         std::cout << "renderer  " << info << "\n"
                   << "frames    " << frames << " at " << width << "x" << height;
-        if (kind != OutputKind::Png) std::cout << ", " << o.fps << " fps";
-        std::cout << "; per frame: draw ";
-        if (frames > 1) std::cout << 1e3 * renderSeconds / (frames - 1) << " ms (the first ";
-        std::cout << 1e3 * firstDrawSeconds << " ms" << (frames > 1 ? ", with shader compilation)" : "")
-                  << ", write " << 1e3 * writeSeconds / frames
-                  << " ms\n"
-                  << "physics   " << steps << " steps, " << (steps ? 1e3 * physics / steps : 0.0) << " ms per step\n"
-                  << "wall      " << nowSeconds() - wall0 << " s\n"
-                  << "wrote     " << o.output << "\n";
+        if (kind == OutputKind::Png) {
+          std::cout << "; draw " << 1e3 * firstDrawSeconds << " ms, write " << 1e3 * writeSeconds << " ms\n"
+                    << "physics   " << steps << " steps, " << (steps ? 1e3 * physics / steps : 0.0) << " ms per step\n"
+                    << "wall      " << wall << " s\n";
+        } else {
+          std::cout << ", " << o.fps << " fps\n"
+                    << "per frame physics " << 1e3 * physics / frames << " ms (" << steps << " steps, "
+                    << (steps ? 1e3 * physics / steps : 0.0) << " ms each), draw ";
+          if (frames > 1) std::cout << 1e3 * renderSeconds / (frames - 1) << " ms (the first ";
+          std::cout << 1e3 * firstDrawSeconds << " ms" << (frames > 1 ? ", with shader compilation)" : "")
+                    << ", anti-aliasing " << 1e3 * finishSeconds / frames << " ms, write " << 1e3 * writeSeconds / frames
+                    << " ms\n"
+                    << "          on three threads: physics ahead of the drawing, anti-aliasing and writing beside it; the drawing waited "
+                    << 1e3 * waitPhysics / frames << " ms for physics and " << 1e3 * waitWriting / frames
+                    << " ms for the writing\n"
+                    << "rate      " << frames << " frames in " << wall << " s: " << std::setprecision(1)
+                    << frames / wall << " frames per second end to end (physics, drawing, "
+                    << (kind == OutputKind::Video ? "encoding" : "PNG writing") << ")\n"
+                    << std::setprecision(2);
+        }
+        std::cout << "wrote     " << o.output << "\n";
       }
       return 0;
     };

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 
@@ -88,6 +89,138 @@ void VideoSink::commit() {
   std::error_code ec;
   fs::rename(temp_, path_, ec);
   if (ec) throw std::runtime_error(path_ + ": cannot rename " + temp_ + " into place: " + ec.message());
+}
+
+namespace {
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+ThreadedSink::ThreadedSink(std::unique_ptr<FrameSink> inner, int depth)
+    : inner_(std::move(inner)), depth_(static_cast<size_t>(std::max(depth, 1))), thread_([this] { run(); }) {}
+
+ThreadedSink::~ThreadedSink() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+    queue_.clear();
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();  // after the frame being written
+}
+
+void ThreadedSink::run() {
+  std::unique_lock<std::mutex> lock(mu_);
+  for (;;) {
+    cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+    if (stop_) return;
+    Job job = std::move(queue_.front());
+    queue_.pop_front();
+    busy_ = true;
+    lock.unlock();
+    std::exception_ptr error;
+    double finishing = 0, writing = 0;
+    try {
+      auto t0 = std::chrono::steady_clock::now();
+      if (job.isRaw) {
+        finishFrame(job.raw, finished_);
+        finishing = secondsSince(t0);
+        t0 = std::chrono::steady_clock::now();
+      }
+      inner_->write(job.isRaw ? finished_ : job.image);
+      writing = secondsSince(t0);
+    } catch (...) {
+      error = std::current_exception();
+    }
+    lock.lock();
+    finishing_ += finishing;
+    writing_ += writing;
+    busy_ = false;
+    if (job.isRaw)
+      spareRaw_.push_back(std::move(job.raw));
+    else
+      spare_.push_back(std::move(job.image));
+    if (error) {
+      error_ = error;
+      queue_.clear();  // frames after a failed one are not written
+      cv_.notify_all();
+      return;
+    }
+    cv_.notify_all();
+  }
+}
+
+void ThreadedSink::rethrowLocked() {
+  if (error_) std::rethrow_exception(error_);
+}
+
+ThreadedSink::Job ThreadedSink::push(Job job) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock(mu_);
+  cv_.wait(lock, [this] { return error_ || queue_.size() < depth_; });
+  waited_ += secondsSince(t0);
+  rethrowLocked();
+  Job spare;
+  spare.isRaw = job.isRaw;
+  if (job.isRaw && !spareRaw_.empty()) {
+    spare.raw = std::move(spareRaw_.back());
+    spareRaw_.pop_back();
+  } else if (!job.isRaw && !spare_.empty()) {
+    spare.image = std::move(spare_.back());
+    spare_.pop_back();
+  }
+  queue_.push_back(std::move(job));
+  lock.unlock();
+  cv_.notify_all();
+  return spare;
+}
+
+void ThreadedSink::pass(Image& frame) {
+  Job job;
+  job.image = std::move(frame);
+  frame = push(std::move(job)).image;
+}
+
+void ThreadedSink::pass(RawFrame& frame) {
+  Job job;
+  job.raw = std::move(frame);
+  job.isRaw = true;
+  frame = push(std::move(job)).raw;
+}
+
+void ThreadedSink::write(const Image& frame) {
+  Image copy = frame;
+  pass(copy);
+}
+
+double ThreadedSink::finishSeconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return finishing_;
+}
+
+double ThreadedSink::writeSeconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return writing_;
+}
+
+double ThreadedSink::waitedSeconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return waited_;
+}
+
+void ThreadedSink::commit() {
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [this] { return error_ || (queue_.empty() && !busy_); });
+    rethrowLocked();
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+  const auto t0 = std::chrono::steady_clock::now();
+  inner_->commit();
+  writing_ += secondsSince(t0);
 }
 
 }  // namespace substep::render

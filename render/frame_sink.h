@@ -8,12 +8,19 @@
 // from ffmpeg) for a failure while writing.
 #pragma once
 
+#include "render/fxaa.h"
 #include "render/image.h"
 #include "render/video.h"
 
+#include <condition_variable>
+#include <deque>
+#include <exception>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <vector>
 
 namespace substep::render {
 
@@ -74,6 +81,53 @@ class VideoSink final : public FrameSink {
  private:
   std::string path_, temp_;
   std::unique_ptr<VideoEncoder> encoder_;
+};
+
+// Another sink's writes on a thread of their own, so the next frame is drawn while this one is
+// piped to ffmpeg or encoded as PNG. At most `depth` frames wait; pass() hands a frame over
+// without copying it, finished or raw (then the anti-aliasing filter and the row flip run on the
+// sink's thread too, beside the drawing of the next frame). An error of the inner sink comes out
+// of the next pass(), write() or commit(). Destroyed without commit(), it drops the frames still
+// waiting and destroys the inner sink, which leaves nothing behind.
+class ThreadedSink final : public FrameSink {
+ public:
+  explicit ThreadedSink(std::unique_ptr<FrameSink> inner, int depth = 2);
+  ~ThreadedSink() override;
+  ThreadedSink(const ThreadedSink&) = delete;
+  ThreadedSink& operator=(const ThreadedSink&) = delete;
+  void write(const Image& frame) override;  // a copy
+  // Takes the frame's pixels and gives back the buffer of a frame already written (same size
+  // after the first few), so a renderer drawing into it causes no page faults.
+  void pass(Image& frame);
+  void pass(RawFrame& frame);  // finishFrame() on the sink's thread
+  void commit() override;      // waits for every frame, then commits the inner sink
+
+  double finishSeconds() const;  // finishFrame() of raw frames (FXAA and the row flip)
+  double writeSeconds() const;   // the inner sink's time (ffmpeg taking frames, PNG encoding)
+  double waitedSeconds() const;  // time pass() waited for room (the writing behind)
+
+ private:
+  struct Job {
+    Image image;
+    RawFrame raw;
+    bool isRaw = false;
+  };
+  void run();
+  Job push(Job job);  // waits for room, queues it, returns a spare buffer of its kind (or an empty one)
+  void rethrowLocked();
+
+  std::unique_ptr<FrameSink> inner_;
+  const size_t depth_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<Job> queue_;          // frames to write, in order
+  std::vector<Image> spare_;       // buffers of frames written
+  std::vector<RawFrame> spareRaw_;
+  Image finished_;                 // the sink thread's image of a raw frame
+  bool busy_ = false, stop_ = false;
+  std::exception_ptr error_;
+  double finishing_ = 0, writing_ = 0, waited_ = 0;
+  std::thread thread_;  // last: started once everything above exists
 };
 
 }  // namespace substep::render

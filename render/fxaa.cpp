@@ -35,18 +35,19 @@ void alphaRow(const uint8_t* __restrict in, uint8_t* __restrict a, int width) {
 
 // Marks the pixels of a row whose contrast with their four neighbours is an edge's (on the luma
 // in bits 1-7 of the alpha) and that are not smooth along with all four (bit 0). Returns whether
-// any is.
+// any is. In 16-bit lanes (range and hi times 256 stay below 2^15), so it vectorises 8 wide.
 bool edgeRow(const uint8_t* __restrict up, const uint8_t* __restrict mid, const uint8_t* __restrict down,
-             uint8_t* __restrict edge, int width, int minRange, int share) {
-  int any = 0;
+             uint8_t* __restrict edge, int width, int minRange, int share256) {
+  uint8_t any = 0;
   for (int x = 0; x < width; ++x) {
     const uint8_t n = up[x], s = down[x], w = mid[x - 1], e = mid[x + 1], m = mid[x];
-    const int hi = std::max(std::max(std::max(n, s), std::max(w, e)), m) >> 1;
-    const int lo = std::min(std::min(std::min(n, s), std::min(w, e)), m) >> 1;
-    const int range = hi - lo;
-    const int smooth = n & s & w & e & m & 1;
-    const int on = (range >= minRange) & (range * 1024 >= hi * share) & (smooth ^ 1);
-    edge[x] = static_cast<uint8_t>(on);
+    const uint16_t hi = std::max(std::max(std::max(n, s), std::max(w, e)), m) >> 1;
+    const uint16_t lo = std::min(std::min(std::min(n, s), std::min(w, e)), m) >> 1;
+    const uint16_t range = static_cast<uint16_t>(hi - lo);
+    const uint8_t smooth = n & s & w & e & m & 1;
+    const uint8_t on = (range >= minRange) & (static_cast<uint16_t>(range << 8) >= static_cast<uint16_t>(hi * share256)) &
+                       (smooth ^ 1);
+    edge[x] = on;
     any |= on;
   }
   return any != 0;
@@ -67,36 +68,47 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
   if (width <= 0 || height <= 0) return stats;
   const int W = width, H = height;
   auto row = [&](int y) { return src + static_cast<long>(y) * srcStride; };
-  auto L = [&](int x, int y) { return static_cast<int>(row(y)[4 * x + 3] >> 1); };  // luma 0-127
-
-  // Alpha of rows y-1, y, y+1 (rolling), with a pixel of margin each side.
-  thread_local std::vector<uint8_t> buffers, edges;
-  buffers.resize(3 * static_cast<size_t>(W + 2));
-  edges.resize(static_cast<size_t>(W));
-  uint8_t* rows[3] = {&buffers[1], &buffers[static_cast<size_t>(W) + 3], &buffers[2 * static_cast<size_t>(W) + 5]};
-  alphaRow(row(0), rows[1], W);
-  std::memcpy(rows[0] - 1, rows[1] - 1, static_cast<size_t>(W) + 2);
+  // The alpha of every pixel, a byte each, with a pixel of margin either side of a row (the end
+  // pixels repeated): the edge test and the search along edges read this plane, a quarter of the
+  // frame's bytes (a search across rows stays in the cache).
+  thread_local std::vector<uint8_t> plane, edges;
+  const size_t P = static_cast<size_t>(W) + 2;
+  plane.resize(P * static_cast<size_t>(H));
+  edges.resize(static_cast<size_t>(W) + 8);
+  // Filled a little ahead of the rows being filtered (the search reaches kSearchReach rows
+  // down), so each row of the frame is read while it is still in the cache.
+  int filled = 0;
+  auto fillTo = [&](int y) {
+    for (; filled < std::min(y, H); ++filled) alphaRow(row(filled), &plane[static_cast<size_t>(filled) * P + 1], W);
+  };
+  auto alphas = [&](int y) { return &plane[static_cast<size_t>(y) * P + 1]; };
+  auto L = [&](int x, int y) { return static_cast<int>(alphas(y)[x] >> 1); };  // luma 0-127
+  uint8_t* const edge = edges.data();
 
   const int minRange = static_cast<int>(std::ceil(options.edgeThresholdMin * 127));
-  const int share = static_cast<int>(std::lround(options.edgeThreshold * 1024));
+  const int share256 = static_cast<int>(std::lround(options.edgeThreshold * 256));
 
   for (int y = 0; y < H; ++y) {
-    if (y + 1 < H)
-      alphaRow(row(y + 1), rows[2], W);
-    else
-      std::memcpy(rows[2] - 1, rows[1] - 1, static_cast<size_t>(W) + 2);
+    fillTo(y + kSearchReach + 2);
     const uint8_t* in = row(y);
     uint8_t* out = &dst.rgba[static_cast<size_t>(y) * W * 4];
     opaqueRow(in, out, W);
-    const bool any = edgeRow(rows[0], rows[1], rows[2], edges.data(), W, minRange, share);
-    std::rotate(rows, rows + 1, rows + 3);
-    if (!any) continue;
+    if (!edgeRow(alphas(std::max(y - 1, 0)), alphas(y), alphas(std::min(y + 1, H - 1)), edge, W, minRange, share256))
+      continue;
     for (const PixelRect& r : keep)
       if (y >= r.y0 && y < r.y1)
-        for (int x = std::max(r.x0, 0); x < std::min(r.x1, W); ++x) edges[static_cast<size_t>(x)] = 0;
+        for (int x = std::max(r.x0, 0); x < std::min(r.x1, W); ++x) edge[x] = 0;
 
     for (int x = 0; x < W; ++x) {
-      if (!edges[static_cast<size_t>(x)]) continue;
+      if ((x & 7) == 0) {  // most of a row is not an edge: skip 8 at a time (edges has 8 bytes of slack)
+        uint64_t eight;
+        std::memcpy(&eight, edge + x, 8);
+        if (x + 8 <= W && eight == 0) {
+          x += 7;
+          continue;
+        }
+      }
+      if (!edge[x]) continue;
       const int xl = std::max(x - 1, 0), xr = std::min(x + 1, W - 1), yu = std::max(y - 1, 0), yd = std::min(y + 1, H - 1);
       const int lM = L(x, y), lN = L(x, yu), lS = L(x, yd), lW = L(xl, y), lE = L(xr, y);
       const int lNW = L(xl, yu), lNE = L(xr, yu), lSW = L(xl, yd), lSE = L(xr, yd);
@@ -163,6 +175,19 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
     }
   }
   return stats;
+}
+
+FxaaStats finishFrame(const RawFrame& frame, Image& out) {
+  const long stride = 4L * frame.width;
+  if (frame.width <= 0 || frame.height <= 0) {
+    out = Image();
+    return {};
+  }
+  // GL's rows run bottom-up: the image's row y is GL's row height - 1 - y.
+  const uint8_t* top = frame.rgba.data() + stride * (frame.height - 1);
+  if (frame.fxaa) return fxaa(top, -stride, frame.width, frame.height, out, frame.keep);
+  copyOpaque(top, -stride, frame.width, frame.height, out);
+  return {};
 }
 
 }  // namespace substep::render

@@ -46,4 +46,17 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
 // The same frame without anti-aliasing: copied (flipped by a negative stride), alpha 255.
 void copyOpaque(const uint8_t* src, long srcStride, int width, int height, Image& dst);
 
+// A frame as the renderer reads it back (GlRenderer::draw): rows bottom-up, the luma in the
+// alpha, with what the filter must leave alone and whether to filter. finishFrame() makes the
+// image of it; it needs no GL context, so it can run on another thread while the next frame is
+// drawn.
+struct RawFrame {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba;   // width * height * 4, row 0 at the bottom
+  std::vector<PixelRect> keep; // text panels (rows counted from the top)
+  bool fxaa = true;            // the filter, else a plain copy
+};
+// Filtered (or copied), flipped, opaque: the frame as GlRenderer::render returns it.
+FxaaStats finishFrame(const RawFrame& frame, Image& out);
+
 }  // namespace substep::render

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 
 namespace substep::render {
 
@@ -28,7 +29,7 @@ layout(location = 1) in vec3 aNormal;
 layout(location = 2) in float aCap;
 layout(location = 3) in vec4 iRot;          // quaternion x, y, z, w
 layout(location = 4) in vec4 iPosStretch;   // position, capsule stretch
-layout(location = 5) in vec4 iScaleFlags;   // scale, flags
+layout(location = 5) in vec4 iScaleFlags;   // scale, flags (which program draws it: unused here)
 layout(location = 6) in vec4 iColour;       // rgb, highlight
 uniform mat4 uViewProj;
 uniform mat4 uLightMatrix;
@@ -36,9 +37,8 @@ uniform float uNormalBias;
 out vec3 vShadow;
 out vec3 vWorld;
 out vec3 vNormal;
-out vec3 vColour;
-out float vHighlight;
-flat out int vFlags;
+flat out vec3 vColour;      // per instance: not interpolated (llvmpipe pays per component and pixel)
+flat out float vHighlight;
 vec3 qrot(vec4 q, vec3 v) { return v + 2.0 * cross(q.xyz, cross(q.xyz, v) + q.w * v); }
 void main() {
   vec3 local = aPos * iScaleFlags.xyz + vec3(0.0, aCap * iPosStretch.w, 0.0);
@@ -46,27 +46,25 @@ void main() {
   vNormal = qrot(iRot, aNormal / iScaleFlags.xyz);   // inverse-transpose of a scale is its inverse
   vColour = iColour.rgb;
   vHighlight = iColour.a;
-  vFlags = int(iScaleFlags.w + 0.5);
   gl_Position = uViewProj * vec4(vWorld, 1.0);
   // The light's projection is orthographic, so its coordinates interpolate exactly.
   vShadow = (uLightMatrix * vec4(vWorld + normalize(vNormal) * uNormalBias, 1.0)).xyz * 0.5 + 0.5;
 }
 )";
 
-// Compiled three times with MODE 0 (lit), 1 (overlay: flat) and 2 (depth only, the shadow
-// pass): llvmpipe runs both sides of a branch on a uniform, so one program with a mode uniform
-// made the shadow pass pay for the lighting.
+// Compiled four times: MODE 0 (lit) with GRID 0 (bodies) and GRID 1 (statics flagged kGrid: the
+// grid on upward faces), MODE 1 (overlay: flat) and MODE 2 (depth only, the shadow pass): llvmpipe
+// runs both sides of a branch, even on a uniform, so one program with a mode uniform made the
+// shadow pass pay for the lighting, and one with a grid branch made every body pay for the grid.
 const char* kMeshFS = R"(
 in vec3 vShadow;
 in vec3 vWorld;
 in vec3 vNormal;
-in vec3 vColour;
-in float vHighlight;
-flat in int vFlags;
+flat in vec3 vColour;
+flat in float vHighlight;
 uniform vec3 uEye;
 uniform vec3 uLightDir;         // the direction light travels
 uniform sampler2DShadow uShadowMap;
-uniform int uShadows;
 uniform vec3 uHorizon;
 uniform vec2 uFog;              // start, end [m]
 out vec4 fragColour;
@@ -88,13 +86,16 @@ void main() {
 #else
   vec3 n = normalize(vNormal);
   if (!gl_FrontFacing) n = -n;   // the inside of a bowl, or a mesh wound the other way
-  vec3 v = normalize(uEye - vWorld);
+  vec3 toEye = uEye - vWorld;
+  float eyeDist2 = dot(toEye, toEye), invEyeDist = inversesqrt(eyeDist2);
+  vec3 v = toEye * invEyeDist;
 #if MODE == 1
   vec3 shade = vColour * (0.55 + 0.45 * abs(dot(n, v)));
   fragColour = vec4(shade, lumaAlpha(shade, 0.0));
 #else
   vec3 albedo = vColour;
-  bool grid = (vFlags & 1) != 0 && n.y > 0.5;
+#if GRID
+  bool grid = n.y > 0.5;
   if (grid) {
     // Anti-aliased grid lines every metre, stronger every five, fading where a pixel spans a line.
     vec2 w = fwidth(vWorld.xz);
@@ -105,14 +106,19 @@ void main() {
     float major = 1.0 - min(min(g5.x, g5.y) / 1.5, 1.0);
     albedo *= 1.0 - 0.22 * max(minor, major);
   }
+#else
+  const bool grid = false;
+#endif
   albedo = mix(albedo, vec3(1.0, 0.9, 0.3), 0.35 * vHighlight);
   vec3 L = -uLightDir;
   float ndl = max(dot(n, L), 0.0);
   // Outside the map (beyond the casters) is lit. One hardware-filtered tap: the 2x2 texels
   // around the point, compared and blended (llvmpipe pays dearly for each lookup).
   float sh = 1.0;
-  if (uShadows != 0 && ndl > 0.0 && clamp(vShadow, 0.0, 1.0) == vShadow && vShadow.z < 1.0)
+#if SHADOW
+  if (ndl > 0.0 && clamp(vShadow, 0.0, 1.0) == vShadow && vShadow.z < 1.0)
     sh = texture(uShadowMap, vShadow);
+#endif
   vec3 h = normalize(L + v);
   // Powers by squaring: llvmpipe's pow() costs as much as the rest of the shader.
   float s2 = max(dot(n, h), 0.0);
@@ -123,7 +129,7 @@ void main() {
   vec3 col = albedo * (ambient + 0.78 * ndl * sh * vec3(1.0, 0.97, 0.9)) + spec * sh;
   float rim = 1.0 - max(dot(n, v), 0.0);
   col += vHighlight * rim * rim * vec3(1.0, 0.8, 0.2);
-  col = mix(col, uHorizon, smoothstep(uFog.x, uFog.y, length(uEye - vWorld)));
+  col = mix(col, uHorizon, smoothstep(uFog.x, uFog.y, eyeDist2 * invEyeDist));
   fragColour = vec4(col, lumaAlpha(col, grid ? 1.0 : 0.0));
 #endif
 #endif
@@ -254,6 +260,40 @@ GpuInstance pack(const Instance& in) {
   return g;
 }
 
+// How large a length looks at a point: pixels on screen (perspective) or texels of the shadow map
+// (orthographic), for choosing a round primitive's level of detail.
+struct PixelScale {
+  Vec3f eye = Vec3f::Zero();      // where distances (the draw order) are measured from
+  Vec3f forward = Vec3f::Zero();  // perspective: the view direction (zero: orthographic)
+  float perMetre = 1;             // pixels of a metre at depth 1 (perspective) or anywhere (orthographic)
+  float zNear = 0.05f;
+  float maxError = kMaxSilhouetteError;  // [pixels or texels]
+
+  float pixels(float length, const Vec3f& at, float extent) const {
+    if (forward.isZero()) return length * perMetre;
+    // Depth of the instance's nearest point; anything reaching the near plane gets the finest level.
+    const float depth = forward.dot(at - eye) - extent;
+    return depth <= zNear ? std::numeric_limits<float>::infinity() : length * perMetre / depth;
+  }
+};
+
+// What a view's camera makes of lengths: pixels on screen.
+PixelScale screenScale(const DrawList& dl, const Viewport& vp) {
+  PixelScale p;
+  p.eye = dl.camera.eye;
+  p.forward = (dl.camera.target - dl.camera.eye).normalized();
+  const float aspect = static_cast<float>(vp.width) / static_cast<float>(std::max(vp.height, 1));
+  p.perMetre = dl.camera.projection(aspect)(1, 1) * 0.5f * static_cast<float>(vp.height);
+  p.zNear = dl.camera.zNear;
+  return p;
+}
+
+int levelOf(const Instance& in, const PixelScale& scale) {
+  if (!isRound(in.mesh)) return 0;
+  const float radius = std::max(in.scale.x(), in.scale.z());
+  return roundLevel(scale.pixels(radius, in.position, in.scale.maxCoeff() + std::abs(in.stretch)), scale.maxError);
+}
+
 struct TextVertex {
   float x, y, s, t;
   float r, g, b, a;
@@ -272,15 +312,16 @@ struct GlRenderer::Impl {
   GLuint sceneFbo = 0, sceneColour = 0, sceneDepth = 0;
   GLuint msFbo = 0, msColour = 0, msDepth = 0;
   GLuint drawFbo = 0;
-  std::vector<uint8_t> readback;        // the frame as GL holds it, rows bottom-up
+  RawFrame raw;                         // render()'s frame as read back, reused
   std::vector<PixelRect> textRects;     // this frame's text panels, kept out of the anti-aliasing
   struct ShadowMap {
     GLuint fbo = 0, tex = 0;
   };
   std::vector<ShadowMap> shadowMaps;  // one per view of a frame, made on first use
-  GLuint meshProg = 0, flatProg = 0, depthProg = 0, skyProg = 0, textProg = 0;
+  GLuint litProg[2][2] = {};  // [gridded][shadowed]: without shadows (--shadow-size 0) no lookup at all
+  GLuint flatProg = 0, depthProg = 0, skyProg = 0, textProg = 0;
   GLuint instanceVbo = 0, emptyVao = 0, textVao = 0, textVbo = 0;
-  std::vector<GpuMesh> primitives;
+  std::vector<std::vector<GpuMesh>> primitives;  // by mesh id, then level of detail (round ones)
   std::map<const Mesh*, GpuMesh> custom;  // keyed by the model's mesh, uploaded on first use
   std::vector<std::shared_ptr<const Mesh>> customKeep;  // so a key is never reused by a new mesh
   std::string fontPath;
@@ -331,8 +372,8 @@ struct GlRenderer::Impl {
     return g;
   }
 
-  const GpuMesh& meshFor(int id, const DrawList& dl) {
-    if (id < kFirstCustomMesh) return primitives[static_cast<size_t>(id)];
+  const GpuMesh& meshFor(int id, int level, const DrawList& dl) {
+    if (id < kFirstCustomMesh) return primitives[static_cast<size_t>(id)][static_cast<size_t>(isRound(id) ? level : 0)];
     const auto& sp = dl.meshes.at(static_cast<size_t>(id - kFirstCustomMesh));
     auto it = custom.find(sp.get());
     if (it != custom.end()) return it->second;
@@ -358,30 +399,42 @@ struct GlRenderer::Impl {
     return *fonts.emplace(px, std::move(f)).first->second;
   }
 
-  // Draws instances grouped by mesh with one instanced call per mesh.
-  // Within a mesh, nearest first: hidden fragments then fail the depth test early.
-  void drawInstances(const std::vector<Instance>& all, const DrawList& dl, bool shadowCasters, const Vec3f& eye) {
-    std::vector<const Instance*> list;
+  // Draws instances grouped by mesh and level of detail with one instanced call per group.
+  // Within a group, nearest first: hidden fragments then fail the depth test early.
+  // The instances with none of the `skip` flags and all of the `need` flags. With `finest`, no
+  // instance is drawn finer than that scale would draw it.
+  void drawInstances(const std::vector<Instance>& all, const DrawList& dl, uint32_t skip, uint32_t need,
+                     const PixelScale& scale, const PixelScale* finest = nullptr) {
+    struct Item {
+      const Instance* in;
+      int level;
+      float distance;
+    };
+    std::vector<Item> list;
     list.reserve(all.size());
     for (const Instance& in : all)
-      if (!shadowCasters || !(in.flags & kNoShadow)) list.push_back(&in);
+      if (!(in.flags & skip) && (in.flags & need) == need)
+        list.push_back({&in, finest ? std::min(levelOf(in, scale), levelOf(in, *finest)) : levelOf(in, scale),
+                        (in.position - scale.eye).squaredNorm()});
     if (list.empty()) return;
-    std::stable_sort(list.begin(), list.end(), [&](const Instance* a, const Instance* b) {
-      if (a->mesh != b->mesh) return a->mesh < b->mesh;
-      return (a->position - eye).squaredNorm() < (b->position - eye).squaredNorm();
+    std::stable_sort(list.begin(), list.end(), [](const Item& a, const Item& b) {
+      if (a.in->mesh != b.in->mesh) return a.in->mesh < b.in->mesh;
+      if (a.level != b.level) return a.level < b.level;
+      return a.distance < b.distance;
     });
     std::vector<GpuInstance> packed(list.size());
-    for (size_t i = 0; i < list.size(); ++i) packed[i] = pack(*list[i]);
+    for (size_t i = 0; i < list.size(); ++i) packed[i] = pack(*list[i].in);
     glBindBuffer(GL_ARRAY_BUFFER, instanceVbo);
     glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(packed.size() * sizeof(GpuInstance)), packed.data(),
                  GL_STREAM_DRAW);
     for (size_t first = 0; first < list.size();) {
+      const int mesh = list[first].in->mesh, level = list[first].level;
       size_t last = first;
-      while (last < list.size() && list[last]->mesh == list[first]->mesh) ++last;
-      const GpuMesh& m = meshFor(list[first]->mesh, dl);
+      while (last < list.size() && list[last].in->mesh == mesh && list[last].level == level) ++last;
+      const GpuMesh& m = meshFor(mesh, level, dl);
       // Primitives are closed and wound outwards, so their back faces need not be drawn (llvmpipe
       // pays per fragment, hidden or not); model meshes may be open (a bowl) and stay two-sided.
-      if (list[first]->mesh < kFirstCustomMesh)
+      if (mesh < kFirstCustomMesh)
         glEnable(GL_CULL_FACE);
       else
         glDisable(GL_CULL_FACE);
@@ -433,7 +486,10 @@ struct GlRenderer::Impl {
       glGenTextures(1, &sm.tex);
       glBindTexture(GL_TEXTURE_2D, sm.tex);
       const int side = std::max(shadowSize, 1);
-      glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, side, side, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
+      // 16-bit depth: the lookup's four gathers stalled on a 4 MB map (24 bits kept in 32), half
+      // of it stays in the cache better; 1/65536 of the light's depth range (about 1 mm at 60 m)
+      // is below the polygon offset and the normal bias.
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT16, side, side, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_SHORT, nullptr);
       glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
       glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
       glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -455,7 +511,7 @@ struct GlRenderer::Impl {
   }
 
   // Depth of the view's shadow casters from the light.
-  void drawShadowMap(const DrawList& dl, const ShadowMap& sm) {
+  void drawShadowMap(const DrawList& dl, const Viewport& vp, const ShadowMap& sm) {
     float texelWorld = 0;
     const Mat4f light = lightMatrix(dl, texelWorld);
     glBindFramebuffer(GL_FRAMEBUFFER, sm.fbo);
@@ -468,7 +524,14 @@ struct GlRenderer::Impl {
     glPolygonOffset(1.5f, 2.0f);
     glUseProgram(depthProg);
     glUniformMatrix4fv(glGetUniformLocation(depthProg, "uViewProj"), 1, GL_FALSE, light.data());
-    drawInstances(dl.solids, dl, true, dl.boundsCentre - 1000 * dl.lightDirection);
+    PixelScale texels;  // orthographic: texels of the map per metre
+    texels.eye = dl.boundsCentre - 1000 * dl.lightDirection;
+    texels.perMetre = 1 / texelWorld;
+    texels.maxError = kMaxShadowSilhouetteError;
+    // A caster finer than what receives its shadow would stand out of the receiver's facets and
+    // shade their middles (acne): casters are never finer than the view draws them.
+    const PixelScale screen = screenScale(dl, vp);
+    drawInstances(dl.solids, dl, kNoShadow, 0, texels, &screen);
     glDisable(GL_POLYGON_OFFSET_FILL);
   }
 
@@ -495,22 +558,30 @@ struct GlRenderer::Impl {
     // Solids.
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LESS);
-    glUseProgram(meshProg);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, sm.tex);
-    glUniform1i(glGetUniformLocation(meshProg, "uShadowMap"), 0);
-    glUniformMatrix4fv(glGetUniformLocation(meshProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
-    glUniformMatrix4fv(glGetUniformLocation(meshProg, "uLightMatrix"), 1, GL_FALSE, light.data());
-    glUniform3fv(glGetUniformLocation(meshProg, "uEye"), 1, dl.camera.eye.data());
-    const Vec3f ld = dl.lightDirection.normalized();
-    glUniform3fv(glGetUniformLocation(meshProg, "uLightDir"), 1, ld.data());
-    glUniform1i(glGetUniformLocation(meshProg, "uShadows"), shadows ? 1 : 0);
-    glUniform1f(glGetUniformLocation(meshProg, "uNormalBias"), 1.5f * texelWorld);
-    glUniform3fv(glGetUniformLocation(meshProg, "uHorizon"), 1, kHorizon.data());
     const float dist = (dl.camera.eye - dl.camera.target).norm();
     const float fog[2] = {std::max(3 * dist, 30.0f), std::max(12 * dist, 150.0f)};
-    glUniform2fv(glGetUniformLocation(meshProg, "uFog"), 1, fog);
-    drawInstances(dl.solids, dl, false, dl.camera.eye);
+    const Vec3f ld = dl.lightDirection.normalized();
+    auto useLit = [&](GLuint prog) {
+      glUseProgram(prog);
+      glUniform1i(glGetUniformLocation(prog, "uShadowMap"), 0);
+      glUniformMatrix4fv(glGetUniformLocation(prog, "uViewProj"), 1, GL_FALSE, viewProj.data());
+      glUniformMatrix4fv(glGetUniformLocation(prog, "uLightMatrix"), 1, GL_FALSE, light.data());
+      glUniform3fv(glGetUniformLocation(prog, "uEye"), 1, dl.camera.eye.data());
+      glUniform3fv(glGetUniformLocation(prog, "uLightDir"), 1, ld.data());
+      glUniform1f(glGetUniformLocation(prog, "uNormalBias"), 1.5f * texelWorld);
+      glUniform3fv(glGetUniformLocation(prog, "uHorizon"), 1, kHorizon.data());
+      glUniform2fv(glGetUniformLocation(prog, "uFog"), 1, fog);
+    };
+    const PixelScale pixels = screenScale(dl, vp);
+    // The bodies, then the gridded statics (the ground) with the program that draws the grid:
+    // llvmpipe would run the grid's code for every fragment of one program with a branch, and
+    // ground drawn last is not shaded where bodies cover it.
+    useLit(litProg[0][shadows]);
+    drawInstances(dl.solids, dl, kGrid, 0, pixels);
+    useLit(litProg[1][shadows]);
+    drawInstances(dl.solids, dl, 0, kGrid, pixels);
 
     // The sky where no solid is: at the far plane, passing the depth test only where the depth
     // is still the cleared 1.
@@ -529,7 +600,7 @@ struct GlRenderer::Impl {
       glUseProgram(flatProg);
       glUniformMatrix4fv(glGetUniformLocation(flatProg, "uViewProj"), 1, GL_FALSE, viewProj.data());
       glUniform3fv(glGetUniformLocation(flatProg, "uEye"), 1, dl.camera.eye.data());
-      drawInstances(dl.overlays, dl, false, dl.camera.eye);
+      drawInstances(dl.overlays, dl, 0, 0, pixels);
     }
     glDisable(GL_SCISSOR_TEST);
   }
@@ -690,16 +761,25 @@ GlRenderer::GlRenderer(int width, int height, const RendererOptions& options)
   m.skyUnder = m.samples > 1 && m.antiAliasing == AntiAliasing::None;
   const std::string header =
       std::string("#version 330 core\n#define COVERAGE_ALPHA ") + (m.skyUnder ? "1" : "0") + "\n";
-  auto meshVariant = [&](int mode) { return header + "#define MODE " + std::to_string(mode) + "\n" + kMeshFS; };
-  m.meshProg = link(kMeshVS, meshVariant(0).c_str(), "mesh");
-  m.flatProg = link(kMeshVS, meshVariant(1).c_str(), "overlay");
-  m.depthProg = link(kMeshVS, meshVariant(2).c_str(), "shadow");
+  auto meshVariant = [&](int mode, bool grid, bool shadow) {
+    return header + "#define MODE " + std::to_string(mode) + "\n#define GRID " + (grid ? "1" : "0") +
+           "\n#define SHADOW " + (shadow ? "1" : "0") + "\n" + kMeshFS;
+  };
+  for (int grid = 0; grid < 2; ++grid)
+    for (int shadow = 0; shadow < 2; ++shadow)
+      m.litProg[grid][shadow] = link(kMeshVS, meshVariant(0, grid, shadow).c_str(), grid ? "gridded mesh" : "mesh");
+  m.flatProg = link(kMeshVS, meshVariant(1, false, false).c_str(), "overlay");
+  m.depthProg = link(kMeshVS, meshVariant(2, false, false).c_str(), "shadow");
   m.skyProg = link(kSkyVS, (header + kSkyFS).c_str(), "sky");
   m.textProg = link(kTextVS, kTextFS, "text");
 
   glGenBuffers(1, &m.instanceVbo);
   glGenVertexArrays(1, &m.emptyVao);
-  for (int id = 0; id < kFirstCustomMesh; ++id) m.primitives.push_back(m.upload(primitiveMesh(id)));
+  for (int id = 0; id < kFirstCustomMesh; ++id) {
+    m.primitives.emplace_back();
+    for (int level = 0; level < (isRound(id) ? kRoundLevels : 1); ++level)
+      m.primitives.back().push_back(m.upload(primitiveMesh(id, level)));
+  }
 
   glGenVertexArrays(1, &m.textVao);
   glBindVertexArray(m.textVao);
@@ -749,6 +829,17 @@ Image GlRenderer::render(const std::vector<View>& views) {
 
 void GlRenderer::render(const std::vector<View>& views, Image& img, FrameTimings* timings) {
   Impl& m = *impl_;
+  draw(views, m.raw, timings);
+  const auto t0 = std::chrono::steady_clock::now();
+  const FxaaStats st = finishFrame(m.raw, img);
+  if (timings) {
+    timings->antiAliasing = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    timings->blendedPixels = st.edgePixels;
+  }
+}
+
+void GlRenderer::draw(const std::vector<View>& views, RawFrame& out, FrameTimings* timings) {
+  Impl& m = *impl_;
   m.makeCurrent();
   m.timings = timings;
   if (timings) {
@@ -761,7 +852,7 @@ void GlRenderer::render(const std::vector<View>& views, Image& img, FrameTimings
   // so a clear followed by a switch to the shadow map would be a real pass over the buffer, while
   // a clear followed by drawing is done per tile as it is drawn (next to free).
   if (m.shadowSize > 0)
-    for (size_t i = 0; i < views.size(); ++i) m.drawShadowMap(*views[i].list, m.shadowMap(i));
+    for (size_t i = 0; i < views.size(); ++i) m.drawShadowMap(*views[i].list, views[i].viewport, m.shadowMap(i));
   m.lap(&FrameTimings::shadow);
   // One clear of the whole surface (colour and depth) for every view: panels do not overlap. The
   // sky then covers what the solids leave; drawn under them after the resolve, it needs the
@@ -798,22 +889,16 @@ void GlRenderer::render(const std::vector<View>& views, Image& img, FrameTimings
   glDisable(GL_BLEND);
   m.lap(&FrameTimings::text);
 
-  const size_t stride = static_cast<size_t>(width_) * 4;
-  m.readback.resize(stride * static_cast<size_t>(height_));
+  out.width = width_;
+  out.height = height_;
+  out.rgba.resize(static_cast<size_t>(width_) * 4 * static_cast<size_t>(height_));
   glBindFramebuffer(GL_READ_FRAMEBUFFER, m.sceneFbo);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, m.readback.data());
+  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
   if (const GLenum err = glGetError(); err != GL_NO_ERROR) throw RenderError("GL error " + std::to_string(err) + " while drawing");
+  out.keep = m.textRects;
+  out.fxaa = m.antiAliasing == AntiAliasing::Fxaa;
   m.lap(&FrameTimings::readback);
-  // GL's rows run bottom-up: the image's row y is GL's row height - 1 - y.
-  const uint8_t* top = m.readback.data() + stride * static_cast<size_t>(height_ - 1);
-  if (m.antiAliasing == AntiAliasing::Fxaa) {
-    const FxaaStats st = fxaa(top, -static_cast<long>(stride), width_, height_, img, m.textRects);
-    if (timings) timings->blendedPixels = st.edgePixels;
-  } else {
-    copyOpaque(top, -static_cast<long>(stride), width_, height_, img);
-  }
-  m.lap(&FrameTimings::antiAliasing);
   m.timings = nullptr;
 }
 

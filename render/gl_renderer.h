@@ -5,6 +5,7 @@
 #pragma once
 
 #include "render/draw_list.h"
+#include "render/fxaa.h"
 #include "render/image.h"
 
 #include <map>
@@ -81,6 +82,9 @@ class GlRenderer {
   // The same into `out`, reusing its pixels when the size matches (no page faults per frame).
   // With `timings`, every stage is finished and timed (for benchmarks; slower).
   void render(const std::vector<View>& views, Image& out, FrameTimings* timings = nullptr);
+  // The GL part alone: the frame read back, before the anti-aliasing filter and the row flip,
+  // which finishFrame() (render/fxaa.h) does on any thread: render() is draw() then finishFrame().
+  void draw(const std::vector<View>& views, RawFrame& out, FrameTimings* timings = nullptr);
 
  private:
   struct Impl;

@@ -121,12 +121,22 @@ MeshData quadMesh() {
   return m;
 }
 
-MeshData primitiveMesh(int id) {
+bool isRound(int meshId) { return meshId == kSphereMesh || meshId == kCapsuleMesh || meshId == kCylinderMesh; }
+
+int roundLevel(float radiusPixels, float maxError) {
+  for (int level = 0; level < kFinestLevel; ++level)
+    if (radiusPixels * (1 - std::cos(kPi / static_cast<float>(kRoundSlices[level]))) <= maxError) return level;
+  return kFinestLevel;
+}
+
+MeshData primitiveMesh(int id, int level) {
+  if (level < 0 || level >= kRoundLevels) throw std::invalid_argument("primitiveMesh: no level " + std::to_string(level));
+  const int n = kRoundSlices[level];
   switch (id) {
     case kBoxMesh: return boxMesh();
-    case kSphereMesh: return sphereMesh();
-    case kCapsuleMesh: return capsuleMesh();
-    case kCylinderMesh: return cylinderMesh();
+    case kSphereMesh: return sphereMesh(n, n / 2);
+    case kCapsuleMesh: return capsuleMesh(n, n / 4);
+    case kCylinderMesh: return cylinderMesh(n);
     case kQuadMesh: return quadMesh();
     default: throw std::invalid_argument("primitiveMesh: no primitive with id " + std::to_string(id));
   }

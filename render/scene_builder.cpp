@@ -1,10 +1,12 @@
 #include "render/scene_builder.h"
 
+#include "physics/collision/shape_geometry.h"
 #include "physics/constraints/joints.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -90,6 +92,50 @@ void shadowBounds(const Model& model, const State& state, Vec3f& centre, float& 
   }
   centre = box.center().cast<float>();
   radius = std::max(0.5f, static_cast<float>(0.5 * box.diagonal().norm()));
+}
+
+// How far a body's surface reaches along the unit direction d (world), from the world origin.
+double reach(const Shape& shape, const Pose& pose, const Vec3& d) {
+  if (shape.type == ShapeType::Plane) return std::numeric_limits<double>::infinity();  // unbounded
+  if (shape.type == ShapeType::TriangleMesh) return d.dot(pose.p) + shape.boundingRadius();
+  const Feature f = supportingFeature(shape, pose, d);
+  double best = -std::numeric_limits<double>::infinity();
+  for (int k = 0; k < f.count; ++k) best = std::max(best, d.dot(f.p[k]));
+  return best;
+}
+
+// Static convex bodies that every other body lies above, deeper than a resting contact at most:
+// lit from above they can shade nothing but themselves, and a convex body does not shade its own
+// lit faces. Such a ground is left out of the shadow pass (it covered the whole map, drawn every
+// frame for nothing). Any part of another body below its top lies inside it, or (beside it,
+// within kRestingDepth of the top) in a sliver its side could have shaded; both are invisible.
+void groundsCastNoShadow(const Model& model, const State& state, const Vec3f& lightDirection,
+                         std::vector<Instance>& solids) {
+  constexpr double kRestingDepth = 0.05;  // [m]
+  if (lightDirection.y() >= 0) return;
+  const size_t n = model.bodies.size();
+  std::vector<double> bottom(n);
+  // The two lowest bottoms, so each body can be compared with the lowest of the others.
+  double low1 = std::numeric_limits<double>::infinity(), low2 = low1;
+  size_t lowest = n;
+  for (size_t i = 0; i < n; ++i) {
+    bottom[i] = -reach(model.bodies[i].shape, state.bodies[i].pose(), -Vec3::UnitY());
+    if (bottom[i] < low1) {
+      low2 = low1;
+      low1 = bottom[i];
+      lowest = i;
+    } else if (bottom[i] < low2) {
+      low2 = bottom[i];
+    }
+  }
+  for (Instance& in : solids) {
+    if (in.body < 0) continue;
+    const size_t i = static_cast<size_t>(in.body);
+    const Shape& shape = model.bodies[i].shape;
+    if (!model.bodies[i].isStatic || shape.type == ShapeType::Plane || shape.type == ShapeType::TriangleMesh) continue;
+    const double top = reach(shape, state.bodies[i].pose(), Vec3::UnitY());
+    if ((i == lowest ? low2 : low1) >= top - kRestingDepth) in.flags |= kNoShadow;
+  }
 }
 
 }  // namespace
@@ -403,6 +449,7 @@ DrawList buildDrawList(const Model& model, const State& state, const std::vector
     in.highlight = highlighted[i] ? 1.0f : 0.0f;
     dl.solids.push_back(in);
   }
+  groundsCastNoShadow(model, state, dl.lightDirection, dl.solids);
 
   // Overlays are sized with the view so they read the same from near and far.
   const float viewSize = (camera.eye - camera.target).norm() * std::tan(0.5f * camera.fovY * static_cast<float>(kDegree));

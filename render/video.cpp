@@ -40,6 +40,38 @@ std::string findFfmpeg() {
   return findProgram("ffmpeg");
 }
 
+void rgbaToYuv420(const Image& frame, std::vector<uint8_t>& out) {
+  const size_t W = static_cast<size_t>(frame.width), H = static_cast<size_t>(frame.height);
+  out.resize(W * H * 3 / 2);
+  const uint8_t* px = frame.rgba.data();
+  // swscale's coefficients (BT.601 scaled to 219 and 224 levels, in 1/32768) and its rounding:
+  // Y is exactly ffmpeg's. U and V: each row's pair of pixels as swscale takes them (in 1/64
+  // level), then the mean of the two rows, where swscale's vertical filter is a little longer.
+  constexpr int32_t RY = 8414, GY = 16519, BY = 3208;
+  constexpr int32_t RU = -4857, GU = -9535, BU = 14392, RV = 14392, GV = -12052, BV = -2340;
+  uint8_t* Y = out.data();
+  for (size_t i = 0; i < W * H; ++i) {
+    const int32_t r = px[4 * i], g = px[4 * i + 1], b = px[4 * i + 2];
+    Y[i] = static_cast<uint8_t>((RY * r + GY * g + BY * b + (32 << 14) + (1 << 8) + (32 << 9)) >> 15);
+  }
+  uint8_t* U = Y + W * H;
+  uint8_t* V = U + W * H / 4;
+  auto pairU = [](int32_t r, int32_t g, int32_t b) { return (RU * r + GU * g + BU * b + (256 << 15) + (1 << 9)) >> 10; };
+  auto pairV = [](int32_t r, int32_t g, int32_t b) { return (RV * r + GV * g + BV * b + (256 << 15) + (1 << 9)) >> 10; };
+  for (size_t y = 0; y < H / 2; ++y) {
+    const uint8_t* a = px + 4 * W * (2 * y);
+    const uint8_t* b = a + 4 * W;
+    for (size_t x = 0; x < W / 2; ++x) {
+      const uint8_t* p = a + 8 * x;
+      const uint8_t* q = b + 8 * x;
+      const int32_t r0 = p[0] + p[4], g0 = p[1] + p[5], b0 = p[2] + p[6];
+      const int32_t r1 = q[0] + q[4], g1 = q[1] + q[5], b1 = q[2] + q[6];
+      U[y * W / 2 + x] = static_cast<uint8_t>((pairU(r0, g0, b0) + pairU(r1, g1, b1) + 64) >> 7);
+      V[y * W / 2 + x] = static_cast<uint8_t>((pairV(r0, g0, b0) + pairV(r1, g1, b1) + 64) >> 7);
+    }
+  }
+}
+
 VideoEncoder::VideoEncoder(const std::string& ffmpeg, const std::string& path, int width, int height,
                            const VideoOptions& o)
     : path_(path), width_(width), height_(height) {
@@ -58,7 +90,7 @@ VideoEncoder::VideoEncoder(const std::string& ffmpeg, const std::string& path, i
   }
   const std::vector<std::string> args = {
       ffmpeg, "-hide_banner", "-loglevel", "error", "-y",
-      "-f", "rawvideo", "-pix_fmt", "rgba", "-s", std::to_string(width) + "x" + std::to_string(height),
+      "-f", "rawvideo", "-pix_fmt", "yuv420p", "-s", std::to_string(width) + "x" + std::to_string(height),
       "-framerate", std::to_string(o.fps), "-i", "-",
       "-an", "-c:v", "libx264", "-preset", o.preset, "-crf", std::to_string(o.crf), "-pix_fmt", "yuv420p",
       "-movflags", "+faststart", "-f", "mp4", path};
@@ -141,8 +173,9 @@ void VideoEncoder::write(const Image& frame) {
     throw VideoError("frame of " + std::to_string(frame.width) + "x" + std::to_string(frame.height) + " sent to a " +
                      std::to_string(width_) + "x" + std::to_string(height_) + " video");
   if (fd_ < 0) throw VideoError("the video is already closed");
-  const uint8_t* p = frame.rgba.data();
-  size_t left = frame.rgba.size();
+  rgbaToYuv420(frame, yuv_);
+  const uint8_t* p = yuv_.data();
+  size_t left = yuv_.size();
   while (left > 0) {
     const ssize_t n = ::write(fd_, p, left);
     if (n < 0) {

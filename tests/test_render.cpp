@@ -20,11 +20,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <functional>
+#include <limits>
 #include <set>
 
 namespace fs = std::filesystem;
@@ -58,25 +60,28 @@ Eigen::Vector3f project(const Camera& c, float aspect, const Vec3f& p) {
 // normal agrees with its vertex normals. (Back faces are culled, so a wrong winding would hide faces.)
 TEST(Meshes, PrimitivesAreClosedOutwardWoundAndUnitSized) {
   for (int id = 0; id < kFirstCustomMesh; ++id) {
-    const MeshData m = primitiveMesh(id);
-    ASSERT_EQ(m.indices.size() % 3, 0u) << id;
-    ASSERT_FALSE(m.indices.empty()) << id;
-    for (size_t t = 0; t < m.indices.size(); t += 3) {
-      const MeshVertex& a = m.vertices[m.indices[t]];
-      const MeshVertex& b = m.vertices[m.indices[t + 1]];
-      const MeshVertex& c = m.vertices[m.indices[t + 2]];
-      // Positions as the capsule's stretch would place them, so its side quads are not degenerate.
-      auto pos = [](const MeshVertex& v) { return Vec3f(v.position[0], v.position[1] + v.capSign, v.position[2]); };
-      const Vec3f g = (pos(b) - pos(a)).cross(pos(c) - pos(a));
-      if (g.norm() < 1e-7f) continue;  // the poles of a UV sphere
-      const Vec3f n = Vec3f(a.normal[0], a.normal[1], a.normal[2]) + Vec3f(b.normal[0], b.normal[1], b.normal[2]) +
-                      Vec3f(c.normal[0], c.normal[1], c.normal[2]);
-      EXPECT_GT(g.dot(n), 0) << "mesh " << id << " triangle " << t / 3;
-    }
-    for (const MeshVertex& v : m.vertices) {
-      const Vec3f p(v.position[0], v.position[1], v.position[2]);
-      EXPECT_LE(p.cwiseAbs().maxCoeff(), 1.0f + 1e-5f) << id;
-      EXPECT_NEAR(Vec3f(v.normal[0], v.normal[1], v.normal[2]).norm(), 1.0f, 1e-5f) << id;
+    for (int level = 0; level < (isRound(id) ? kRoundLevels : 1); ++level) {
+      SCOPED_TRACE("level " + std::to_string(level));
+      const MeshData m = primitiveMesh(id, level);
+      ASSERT_EQ(m.indices.size() % 3, 0u) << id;
+      ASSERT_FALSE(m.indices.empty()) << id;
+      for (size_t t = 0; t < m.indices.size(); t += 3) {
+        const MeshVertex& a = m.vertices[m.indices[t]];
+        const MeshVertex& b = m.vertices[m.indices[t + 1]];
+        const MeshVertex& c = m.vertices[m.indices[t + 2]];
+        // Positions as the capsule's stretch would place them, so its side quads are not degenerate.
+        auto pos = [](const MeshVertex& v) { return Vec3f(v.position[0], v.position[1] + v.capSign, v.position[2]); };
+        const Vec3f g = (pos(b) - pos(a)).cross(pos(c) - pos(a));
+        if (g.norm() < 1e-7f) continue;  // the poles of a UV sphere
+        const Vec3f n = Vec3f(a.normal[0], a.normal[1], a.normal[2]) + Vec3f(b.normal[0], b.normal[1], b.normal[2]) +
+                        Vec3f(c.normal[0], c.normal[1], c.normal[2]);
+        EXPECT_GT(g.dot(n), 0) << "mesh " << id << " triangle " << t / 3;
+      }
+      for (const MeshVertex& v : m.vertices) {
+        const Vec3f p(v.position[0], v.position[1], v.position[2]);
+        EXPECT_LE(p.cwiseAbs().maxCoeff(), 1.0f + 1e-5f) << id;
+        EXPECT_NEAR(Vec3f(v.normal[0], v.normal[1], v.normal[2]).norm(), 1.0f, 1e-5f) << id;
+      }
     }
   }
   const MeshData box = boxMesh();
@@ -93,6 +98,34 @@ TEST(Meshes, PrimitivesAreClosedOutwardWoundAndUnitSized) {
       EXPECT_EQ(v.capSign, -1.0f);
     }
   }
+}
+
+// A round primitive's level is the coarsest whose silhouette misses the circle by at most the
+// allowed error; large ones keep the finest level (the only one before levels existed).
+TEST(Meshes, RoundLevelsAreTheCoarsestWithinTheError) {
+  auto error = [](float radius, int level) {
+    return radius * (1 - std::cos(3.14159265f / static_cast<float>(kRoundSlices[level])));
+  };
+  int previous = 0;
+  for (float r = 0.1f; r < 200; r *= 1.05f) {
+    const int level = roundLevel(r);
+    EXPECT_GE(level, previous) << r;  // never coarser for a larger radius
+    previous = level;
+    if (level < kFinestLevel) {
+      EXPECT_LE(error(r, level), kMaxSilhouetteError) << r;
+    }
+    if (level > 0) {
+      EXPECT_GT(error(r, level - 1), kMaxSilhouetteError) << r;
+    }
+  }
+  EXPECT_EQ(roundLevel(0.5f), 0);
+  EXPECT_EQ(roundLevel(1000.0f), kFinestLevel);
+  EXPECT_EQ(roundLevel(std::numeric_limits<float>::infinity()), kFinestLevel);
+  // Slices, stacks and capsule rings follow the level: the finest is the mesh used before.
+  EXPECT_EQ(primitiveMesh(kSphereMesh).indices.size(), sphereMesh(32, 16).indices.size());
+  EXPECT_EQ(primitiveMesh(kCapsuleMesh).indices.size(), capsuleMesh(32, 8).indices.size());
+  EXPECT_LT(primitiveMesh(kCapsuleMesh, 1).indices.size(), primitiveMesh(kCapsuleMesh, 2).indices.size());
+  EXPECT_THROW(primitiveMesh(kBoxMesh, kRoundLevels), std::invalid_argument);
 }
 
 TEST(Meshes, ModelMeshesKeepCreasesAndSmoothCurves) {
@@ -160,6 +193,30 @@ TEST(SceneBuilder, OneInstancePerBodyWithItsShapeAndPose) {
   }
   EXPECT_EQ(dl.meshes.size(), 2u);  // the bowl and the gem
   EXPECT_TRUE(dl.overlays.empty());
+}
+
+// A ground that every other body lies on or above casts no shadow (it could shade nothing but
+// itself); the steps on it, and a ground with a body hanging below its top beside it, still do.
+TEST(SceneBuilder, GroundsBelowEverythingCastNoShadow) {
+  const Scene pile = scene("ragdoll_pile.json");
+  State settled = pile.initial;
+  auto flagsOf = [](const DrawList& dl, const Model& m, const std::string& name) {
+    for (const Instance& in : dl.solids)
+      if (in.body == m.bodyIndex(name)) return in.flags;
+    ADD_FAILURE() << name;
+    return 0u;
+  };
+  const DrawList dl = buildDrawList(pile.model, settled, nullptr, defaultCamera(pile), {}, {});
+  EXPECT_TRUE(flagsOf(dl, pile.model, "ground") & kNoShadow);
+  EXPECT_FALSE(flagsOf(dl, pile.model, "step_0") & kNoShadow);
+  for (const Instance& in : dl.solids)
+    if (!pile.model.bodies[static_cast<size_t>(in.body)].isStatic) EXPECT_FALSE(in.flags & kNoShadow);
+  // A body sunk 10 cm into the ground's top (beyond a resting contact): the ground casts again.
+  const int b = pile.model.bodyIndex("ragdoll_0_pelvis");
+  ASSERT_GE(b, 0);
+  settled.bodies[static_cast<size_t>(b)].x.y() = 0.0;
+  EXPECT_FALSE(flagsOf(buildDrawList(pile.model, settled, nullptr, defaultCamera(pile), {}, {}), pile.model, "ground") &
+               kNoShadow);
 }
 
 TEST(SceneBuilder, PlanesBecomeLargeQuadsFacingTheirNormal) {
@@ -708,6 +765,52 @@ TEST(Video, AFailingFfmpegIsReportedAndLeavesNoFile) {
   EXPECT_FALSE(fs::exists(f));
 }
 
+// The conversion to yuv420p: BT.601 at limited range, as ffmpeg's; U and V of each 2x2 block.
+TEST(Video, Yuv420IsBt601LimitedRangeAsFfmpegMakesIt) {
+  auto yuv = [](uint32_t rgba) {
+    std::vector<uint8_t> out;
+    rgbaToYuv420(Image(2, 2, rgba), out);
+    EXPECT_EQ(out.size(), 6u);
+    return std::vector<int>{out[0], out[4], out[5]};
+  };
+  EXPECT_EQ(yuv(0xffffffffu), (std::vector<int>{235, 128, 128}));
+  EXPECT_EQ(yuv(0x000000ffu), (std::vector<int>{16, 128, 128}));
+  EXPECT_EQ(yuv(0xff0000ffu), (std::vector<int>{81, 90, 240}));
+  EXPECT_EQ(yuv(0x00ff00ffu), (std::vector<int>{145, 54, 34}));
+  EXPECT_EQ(yuv(0x0000ffffu), (std::vector<int>{41, 240, 110}));
+  // A 4x2 frame: left block red, right block blue; Y per pixel, U and V per block.
+  Image img(4, 2, 0xff0000ffu);
+  for (int y = 0; y < 2; ++y)
+    for (int x = 2; x < 4; ++x) img.pixel(x, y)[0] = 0, img.pixel(x, y)[2] = 255;
+  std::vector<uint8_t> out;
+  rgbaToYuv420(img, out);
+  EXPECT_EQ(out, (std::vector<uint8_t>{81, 81, 41, 41, 81, 81, 41, 41, 90, 240, 240, 110}));
+  // A rendered frame, against ffmpeg's own conversion when there is one: the same Y, U and V
+  // within 1 level but at a few sharp colour edges (ffmpeg's vertical chroma filter is longer).
+  const std::string ffmpeg = findFfmpeg();
+  if (ffmpeg.empty()) GTEST_SKIP() << "ffmpeg is not installed";
+  const Image frame = readPng(SUBSTEP_SOURCE_DIR "/tests/snapshots/shapes_contacts.png");
+  const fs::path raw = scratch("frame.rgba"), converted = scratch("frame.yuv");
+  { std::ofstream(raw, std::ios::binary).write(reinterpret_cast<const char*>(frame.rgba.data()), static_cast<std::streamsize>(frame.rgba.size())); }
+  const std::string cmd = ffmpeg + " -v error -y -f rawvideo -pix_fmt rgba -s " + std::to_string(frame.width) + "x" +
+                          std::to_string(frame.height) + " -i " + raw.string() + " -f rawvideo -pix_fmt yuv420p " +
+                          converted.string();
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::ifstream in(converted, std::ios::binary);
+  const std::vector<uint8_t> theirs((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  rgbaToYuv420(frame, out);
+  ASSERT_EQ(theirs.size(), out.size());
+  const size_t luma = static_cast<size_t>(frame.width) * frame.height;
+  long long chromaOff = 0;
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (i < luma)
+      ASSERT_EQ(out[i], theirs[i]) << "Y at " << i;
+    else
+      chromaOff += std::abs(int(out[i]) - int(theirs[i])) > 1;
+  }
+  EXPECT_LT(chromaOff, static_cast<long long>(luma / 2 / 100));  // under 1 % of U and V samples
+}
+
 // ---- frame sinks ----
 
 // Every sink's output appears at commit() and not before; dropped before it, nothing is left.
@@ -767,4 +870,68 @@ TEST(FrameSinks, OutputAppearsAtCommitAndNothingIsLeftWithout) {
   video.commit();
   EXPECT_GT(fs::file_size(d / "v.mp4"), 0u);
   EXPECT_EQ(listing(d), (std::vector<std::string>{"frames", "one.png", "v.mp4"}));
+}
+
+// A sink on its own thread writes every frame in order, hands buffers back for reuse, commits
+// only when all are written, and leaves nothing when dropped; an error comes out of the next call.
+TEST(FrameSinks, AThreadedSinkWritesEveryFrameInOrderBesideTheCaller) {
+  using substep_test::listing;
+  const fs::path d = substep_test::emptyScratchFolder("test_render_threaded");
+  {
+    ThreadedSink dropped(std::make_unique<PngFolderSink>((d / "dropped").string()));
+    Image f(8, 4, 0x102030ffu);
+    dropped.pass(f);
+  }
+  EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+
+  ThreadedSink sink(std::make_unique<PngFolderSink>((d / "frames").string()), 2);
+  Image frame;
+  for (int k = 0; k < 6; ++k) {
+    if (frame.empty()) frame = Image(8, 4);
+    std::fill(frame.rgba.begin(), frame.rgba.end(), static_cast<uint8_t>(40 * k));
+    for (size_t i = 3; i < frame.rgba.size(); i += 4) frame.rgba[i] = 255;
+    sink.pass(frame);  // frame now holds a spare buffer (empty at first)
+  }
+  sink.write(Image(8, 4, 0xffffffffu));  // a copy
+  sink.commit();
+  std::vector<std::string> expected;
+  for (int k = 0; k < 7; ++k) expected.push_back(PngFolderSink::frameName(k));
+  EXPECT_EQ(listing(d / "frames"), expected);
+  for (int k = 0; k < 6; ++k)
+    EXPECT_EQ(readPng((d / "frames" / PngFolderSink::frameName(k)).string()).rgba[0], 40 * k) << k;
+  EXPECT_GE(sink.writeSeconds(), 0.0);
+
+  // Raw frames (bottom-up, as read back) are finished on the sink's thread: flipped, opaque.
+  ThreadedSink rawSink(std::make_unique<PngFolderSink>((d / "raw").string()), 1);
+  RawFrame raw;
+  raw.width = 4, raw.height = 2, raw.fxaa = false;
+  raw.rgba.assign(32, 0);
+  for (int x = 0; x < 4; ++x) raw.rgba[4 * x] = 200;  // GL's row 0: the image's bottom row
+  rawSink.pass(raw);
+  EXPECT_TRUE(raw.rgba.empty());  // no spare yet
+  rawSink.commit();
+  const Image flipped = readPng((d / "raw" / PngFolderSink::frameName(0)).string());
+  EXPECT_EQ(flipped.pixel(0, 1)[0], 200);
+  EXPECT_EQ(flipped.pixel(0, 0)[0], 0);
+  EXPECT_EQ(flipped.pixel(0, 0)[3], 255);
+  EXPECT_GE(rawSink.finishSeconds(), 0.0);
+
+  // The inner sink failing (ffmpeg gone): the error comes out of pass() or commit(), and the
+  // output is not left behind.
+  {
+    ThreadedSink bad(std::make_unique<VideoSink>("/bin/false", (d / "bad.mp4").string(), 64, 48, VideoOptions{}));
+    bool thrown = false;
+    try {
+      for (int k = 0; k < 200; ++k) {
+        Image f(64, 48);
+        bad.pass(f);
+      }
+      bad.commit();
+    } catch (const VideoError& e) {
+      thrown = true;
+      EXPECT_NE(std::string(e.what()).find("ffmpeg"), std::string::npos) << e.what();
+    }
+    EXPECT_TRUE(thrown);
+  }
+  EXPECT_EQ(listing(d), (std::vector<std::string>{"frames", "raw"}));
 }

@@ -2,6 +2,7 @@
 // snapshot tests and the render benchmark share: panels stepped to a time, per-panel cost and
 // divergence, panels replaced or re-set, the camera and the HUD changed between frames.
 #include "physics/scene_file.h"
+#include "render/ahead.h"
 #include "render/gl_renderer.h"
 #include "render/session.h"
 
@@ -10,6 +11,8 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <thread>
+#include <vector>
 
 using namespace substep;
 using namespace substep::render;
@@ -206,6 +209,53 @@ TEST(RenderSession, FrameIsTheDrawListsInAGrid) {
   EXPECT_EQ(views[1].list, &lists[1]);
   const uint8_t* border = img.pixel(79, 60);  // the dark column between the panels
   EXPECT_LT(border[0] + border[1] + border[2], 30);
+  // render() is draw() and finishFrame(), which may run on another thread.
+  RawFrame raw;
+  r.draw(views, raw);
+  Image finished;
+  std::thread([&] { finishFrame(raw, finished); }).join();
+  EXPECT_EQ(finished.rgba, img.rgba);
+}
+
+// Stepped ahead on its own thread, a session gives the same draw lists, in order, as stepped
+// frame by frame; a divergence ends the frames, and the session is the caller's again after stop().
+TEST(SessionAhead, SameFramesAsSteppingInTurnAndStopsAtADivergence) {
+  const std::vector<double> times = {0.0, 0.1, 0.25, 0.25, 0.5, 1.0};
+  RenderSession inTurn(sceneFile("stack.json"), {{settings(Algorithm::A2), ""}});
+  RenderSession ahead(sceneFile("stack.json"), {{settings(Algorithm::A2), ""}});
+  {
+    SessionAhead a(ahead, times, 2);
+    for (double t : times) {
+      inTurn.advanceTo(t);
+      const std::vector<DrawList> expected = inTurn.drawLists();
+      const SessionAhead::Frame f = a.next();
+      ASSERT_FALSE(f.diverged);
+      ASSERT_EQ(f.lists.size(), 1u);
+      ASSERT_EQ(f.lists[0].solids.size(), expected[0].solids.size());
+      for (size_t i = 0; i < expected[0].solids.size(); ++i)
+        EXPECT_EQ(f.lists[0].solids[i].position, expected[0].solids[i].position) << t;
+    }
+    const SessionAhead::Frame past = a.next();  // past the last frame
+    EXPECT_TRUE(past.lists.empty());
+    EXPECT_FALSE(past.diverged);
+  }
+  EXPECT_EQ(ahead.panel(0).state().step, 60);
+
+  RenderSession bad(weldedBeam(), {{settings(Algorithm::A5, true), "a5:warm=on"}});
+  SessionAhead a(bad, {0.5, 1.0, 1.5, 2.0, 2.5}, 1);
+  int frames = 0;
+  for (;;) {
+    const SessionAhead::Frame f = a.next();
+    if (f.diverged || f.lists.empty()) {
+      EXPECT_TRUE(f.diverged);
+      break;
+    }
+    ++frames;
+  }
+  EXPECT_EQ(frames, 2);  // diverges near t = 1.2 s
+  a.stop();
+  ASSERT_NE(bad.firstDiverged(), nullptr);
+  EXPECT_NE(bad.firstDiverged()->problem().find("diverged"), std::string::npos);
 }
 
 // A pixel's ray finds the body drawn there, in the panel under it; a push moves that body in
