@@ -799,7 +799,8 @@ struct Server::Impl {
 
   json pick(WebSession& s, const Request& req) {
     const Fields f(req, {"x", "y"});
-    const auto [x, y] = pixel(f, s);
+    const auto xy = pixel(f, s);
+    const auto x = xy.first, y = xy.second;  // not a structured binding: C++17 lambdas cannot capture one
     const int w = s.live->config().width, h = s.live->config().height;
     std::lock_guard<std::mutex> lk(s.m);
     return pickJson(s.live->read([&](const RenderSession& r, const Look&) { return r.pick(w, h, x, y); }), *s.scene);
@@ -826,7 +827,8 @@ struct Server::Impl {
         return json{{"hit", true}, {"panel", 0}, {"body", b}, {"name", name}, {"point", vec(p)}, {"impulse", vec(impulse)}};
       });
     }
-    const auto [x, y] = pixel(f, s);
+    const auto xy = pixel(f, s);
+    const auto x = xy.first, y = xy.second;
     const double speed = f.has("speed") ? f.number("speed", {0, 100, true}) : 3.0;
     return s.live->change([&](RenderSession& r, Look&) {
       const RenderSession::Pick p = r.pick(w, h, x, y);

@@ -13,8 +13,9 @@ SUBSTEP_PACKAGES=(
   ffmpeg gnuplot-nox parallel
 )
 
-# The fuzz build's compiler: clang 14 with libFuzzer and the sanitizer runtimes.
-SUBSTEP_FUZZ_PACKAGES=(clang libclang-rt-14-dev)
+# The sanitizer and fuzz builds' compiler: clang 14 with libFuzzer and the sanitizer runtimes
+# (clang compiles the instrumented code about three times faster than g++ at -O2 -g).
+SUBSTEP_CLANG_PACKAGES=(clang libclang-rt-14-dev)
 
 # The browser test's browser (about 470 MB installed), with node and npm from Debian when the
 # machine has no node at all (substep_node_packages).

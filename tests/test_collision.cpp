@@ -448,12 +448,13 @@ TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
   EXPECT_GT(compared, 30);
 }
 
-// Overlapping boxes: the separating-axis fast path against the general path (FCL's collide, its
-// box-box test being ODE's dBoxBox), on random pairs of random sizes that overlap by up to a
-// fifth of their size. The axis of least overlap is the exact penetration depth, so ours is never
-// deeper than FCL's; where they pick the same normal (dBoxBox prefers a face normal unless an
-// edge axis is 5 % better, ours takes the least overlap) the depths agree to 1e-9 m and the
-// manifolds have the same number of points at the same places.
+// Overlapping boxes: the separating-axis fast path against the general path (FCL's collide, then
+// the same clipping), on random pairs of random sizes that overlap by up to a fifth of their
+// size. Ours takes the axis of least overlap among the 15, the exact penetration depth: moving A
+// out by it along our normal leaves the pair touching (checked with FCL), and FCL's depth, an
+// estimate for edge contacts, is never more than 0.2 mm below it. Where FCL finds the same normal
+// (face contacts, nine pairs in ten) the two manifolds are the same points with the same depths
+// to 1e-9 m, in any order.
 TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
   uint64_t seed = 5;
   auto uniform = [&] {
@@ -463,6 +464,7 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
   Narrowphase fast, general;
   general.useFclForOverlappingBoxes(true);
   int overlapping = 0, same = 0;
+  double worstAngle = 0, worstDepth = 0;
   for (int trial = 0; trial < 2000; ++trial) {
     const Shape a = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
     const Shape b = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
@@ -495,17 +497,40 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
     };
     if (deepest(theirs) <= 1e-6) continue;  // only touching
     ++overlapping;
-    EXPECT_LE(deepest(ours), deepest(theirs) + 1e-9) << "trial " << trial;
-    if (ours.p[0].n.dot(theirs.p[0].n) < 1 - 1e-9) continue;
+    // Ours is the least overlap over all directions; FCL's, an estimate, is never much below it.
+    EXPECT_LE(deepest(ours), deepest(theirs) + 2e-4) << "trial " << trial;
+    // And it is a separating translation: A moved out by it along our normal touches B, FCL says.
+    {
+      const Pose moved{pa.p + (deepest(ours) + 1e-7) * ours.p[0].n, pa.q};
+      fcl::CollisionRequestd req(1, true);
+      fcl::CollisionResultd res;
+      auto tf = [](const Pose& p) {
+        fcl::Transform3d t = fcl::Transform3d::Identity();
+        t.linear() = p.q.toRotationMatrix();
+        t.translation() = p.p;
+        return t;
+      };
+      fcl::collide(makeCollisionShape(a).geometry.get(), tf(moved), makeCollisionShape(b).geometry.get(), tf(pb), req, res);
+      if (res.numContacts() > 0) EXPECT_LT(res.getContact(0).penetration_depth, 1e-6) << "trial " << trial;
+    }
+    const double angle = std::acos(std::min(1.0, ours.p[0].n.dot(theirs.p[0].n)));
+    if (angle > 1e-6) {  // mostly edge contacts, where FCL's normal is an estimate
+      worstAngle = std::max(worstAngle, angle);
+      worstDepth = std::max(worstDepth, deepest(theirs) - deepest(ours));
+      continue;
+    }
     ++same;
-    EXPECT_NEAR(deepest(ours), deepest(theirs), 1e-9) << "trial " << trial;
     ASSERT_EQ(ours.count, theirs.count) << "trial " << trial;
     for (int i = 0; i < ours.count; ++i) {
-      EXPECT_LT((ours.p[i].pA - theirs.p[i].pA).norm(), 1e-9) << "trial " << trial << " point " << i;
-      EXPECT_NEAR(ours.p[i].depth, theirs.p[i].depth, 1e-9) << "trial " << trial << " point " << i;
+      int match = -1;
+      for (int j = 0; j < theirs.count; ++j)
+        if ((ours.p[i].pA - theirs.p[j].pA).norm() < 1e-9) match = j;
+      ASSERT_GE(match, 0) << "trial " << trial << ": our point " << i << " is not one of FCL's path";
+      EXPECT_NEAR(ours.p[i].depth, theirs.p[match].depth, 1e-9) << "trial " << trial << " point " << i;
     }
   }
-  std::printf("overlapping box pairs: %d, the same normal as FCL's: %d\n", overlapping, same);
+  std::printf("overlapping box pairs: %d, the same normal as FCL's: %d; elsewhere FCL's normal up to %.1f degrees off,"
+              " its depth up to %.2f mm deeper\n", overlapping, same, worstAngle * 180 / M_PI, worstDepth * 1e3);
   EXPECT_GT(overlapping, 1500);
   EXPECT_GT(same, overlapping * 9 / 10);
 }
