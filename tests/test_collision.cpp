@@ -432,7 +432,7 @@ TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
     }
     // Separated round pairs: FCL's GJK distance is exact to its tolerance. (Overlapping ones
     // are not compared: libccd's MPR depth is an estimate, off by 2 to 3 % at 10 cm, where the
-    // core segments give the exact one.)
+    // core segments give the exact one. Round shapes against boxes: RoundAgainstBoxMatchesTheReference.)
     const bool round = a.type != ShapeType::Box && b.type != ShapeType::Box;
     if (round && ours.count > 0 && fclDepth < -1e-3) {
       double deepest = -1e9;
@@ -446,6 +446,97 @@ TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
   EXPECT_GT(reported, 300);
   EXPECT_GT(dropped, 300);
   EXPECT_GT(compared, 30);
+}
+
+// An independent reference for a sphere or capsule against a box: the distance from a point to a
+// box is exact by clamping in the box's frame, and along the core segment it is a convex function
+// of the segment's parameter, so a ternary search finds its minimum (to 1e-12 of the segment).
+double coreBoxDistance(const Shape& r, const Pose& pr, const Shape& b, const Pose& pb) {
+  const Vec3 half = r.type == ShapeType::Capsule ? pr.rotate(Vec3(0, r.halfHeight, 0)) : Vec3::Zero();
+  const Vec3 p0 = pr.p - half, p1 = pr.p + half;
+  auto at = [&](double t) {
+    const Vec3 local = pb.q.conjugate() * (p0 + t * (p1 - p0) - pb.p);
+    return (local - local.cwiseMax(-b.halfExtents).cwiseMin(b.halfExtents)).norm();
+  };
+  double lo = 0, hi = 1;
+  for (int k = 0; k < 100; ++k) {
+    const double m1 = lo + (hi - lo) / 3, m2 = hi - (hi - lo) / 3;
+    (at(m1) <= at(m2) ? hi : lo) = at(m1) <= at(m2) ? m2 : m1;
+  }
+  return std::min({at(0), at(1), at(0.5 * (lo + hi))});
+}
+
+// Spheres and capsules against boxes in closed form (roundBoxContact), on random pairs from just
+// apart to overlapping by the radius and half the box's smallest size. Apart, the gap is the reference distance
+// to 1e-9 m; overlapping, moving the round shape out by the depth along the normal leaves the
+// pair touching (the reference distance 0 to 1e-9 m). Printed for comparison: how far the
+// manifold's deepest point is from the gap (the supporting features clipped along the normal, as
+// for every pair: a face supports while within a few degrees of facing the normal, so its corners
+// sit off the exact distance) and how far FCL's estimate (libccd's MPR) is.
+TEST(Narrowphase, RoundAgainstBoxMatchesTheReference) {
+  uint64_t seed = 9;
+  auto uniform = [&] {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(seed >> 11) / 9007199254740992.0;
+  };
+  Narrowphase np, general;
+  general.useGeneralPath(true);
+  int apart = 0, deepCores = 0, shallow = 0;
+  double worstFcl = 0, worstPatch = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Shape r = trial % 3 == 0 ? sphere(0.05 + 0.5 * uniform()) : capsule(0.05 + 0.3 * uniform(), 0.05 + 0.5 * uniform());
+    const Shape b = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
+    const bool roundFirst = trial % 2 == 0;
+    const Vec3 dir = Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5).normalized();
+    const Pose pr{Vec3::Zero(), Rq(4 * Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5))};
+    Pose pb{Vec3::Zero(), Rq(4 * Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5))};
+    auto patch = [&](Narrowphase& n) {
+      ContactPatch p;
+      if (roundFirst) {
+        n.collide(r, makeCollisionShape(r), pr, b, makeCollisionShape(b), pb, 0.02, p);
+      } else {
+        n.collide(b, makeCollisionShape(b), pb, r, makeCollisionShape(r), pr, 0.02, p);
+      }
+      return p;
+    };
+    auto deepest = [](const ContactPatch& p) {
+      double d = -1e9;
+      for (int i = 0; i < p.count; ++i) d = std::max(d, p.p[i].depth);
+      return d;
+    };
+    double lo = 0, hi = 4;  // B slid out along dir until the reference says apart
+    for (int k = 0; k < 60; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      pb.p = mid * dir;
+      (coreBoxDistance(r, pr, b, pb) < r.radius ? lo : hi) = mid;
+    }
+    pb.p = (lo + (trial % 5 == 0 ? 0.015 : -(r.radius + 0.5 * b.halfExtents.minCoeff())) * uniform()) * dir;
+    Vec3 n, onBox;
+    double gap;
+    ASSERT_TRUE(roundBoxContact(r, pr, b, pb, 0.02, n, gap, onBox)) << "trial " << trial;
+    EXPECT_NEAR(n.norm(), 1, 1e-12);
+    const ContactPatch ours = patch(np);
+    ASSERT_GT(ours.count, 0) << "trial " << trial;
+    expectConsistent(ours);
+    worstPatch = std::max(worstPatch, std::abs(deepest(ours) + gap));
+    if (gap > 0) {
+      EXPECT_NEAR(gap, coreBoxDistance(r, pr, b, pb) - r.radius, 1e-9) << "trial " << trial;
+      ++apart;
+      continue;
+    }
+    (-gap > r.radius ? deepCores : shallow) += 1;  // deeper than the radius: the core reaches in
+    const Pose moved{pr.p - gap * n, pr.q};
+    const double after = coreBoxDistance(r, moved, b, pb) - r.radius;
+    EXPECT_GT(after, -1e-9) << "trial " << trial << " depth " << -gap;
+    EXPECT_LT(after, 1e-9) << "trial " << trial << " depth " << -gap;
+    worstFcl = std::max(worstFcl, std::abs(deepest(patch(general)) + gap) / -gap);
+  }
+  std::printf("round shapes against boxes: %d apart, %d overlapping with the core outside, %d with it inside;"
+              " manifolds' deepest point up to %.1f mm from the gap; FCL's depth up to %.0f %% off\n",
+              apart, shallow, deepCores, worstPatch * 1e3, worstFcl * 100);
+  EXPECT_GT(apart, 200);
+  EXPECT_GT(shallow, 500);
+  EXPECT_GT(deepCores, 100);
 }
 
 // Overlapping boxes: the separating-axis fast path against the general path (FCL's collide, then
@@ -462,7 +553,7 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
     return static_cast<double>(seed >> 11) / 9007199254740992.0;
   };
   Narrowphase fast, general;
-  general.useFclForOverlappingBoxes(true);
+  general.useGeneralPath(true);
   int overlapping = 0, same = 0;
   double worstAngle = 0, worstDepth = 0;
   for (int trial = 0; trial < 2000; ++trial) {
@@ -511,7 +602,9 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
         return t;
       };
       fcl::collide(makeCollisionShape(a).geometry.get(), tf(moved), makeCollisionShape(b).geometry.get(), tf(pb), req, res);
-      if (res.numContacts() > 0) EXPECT_LT(res.getContact(0).penetration_depth, 1e-6) << "trial " << trial;
+      if (res.numContacts() > 0) {
+        EXPECT_LT(res.getContact(0).penetration_depth, 1e-6) << "trial " << trial;
+      }
     }
     const double angle = std::acos(std::min(1.0, ours.p[0].n.dot(theirs.p[0].n)));
     if (angle > 1e-6) {  // mostly edge contacts, where FCL's normal is an estimate

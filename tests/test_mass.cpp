@@ -125,7 +125,8 @@ TEST(Mass, CylinderAlongY) {
 
 TEST(Mass, CapsuleAgainstSlicedIntegration) {
   const double rho = 900;
-  for (const auto& [r, h] : {std::pair{0.5, 0.6}, std::pair{0.25, 0.35}, std::pair{0.4, 0.05}}) {
+  for (const auto& rh : {std::pair{0.5, 0.6}, std::pair{0.25, 0.35}, std::pair{0.4, 0.05}}) {
+    const double r = rh.first, h = rh.second;  // not a structured binding: the lambda captures them
     const MassProperties mp = shapeMassProperties(capsule(r, h), rho);
     // Profile: cylinder of radius r for |y| <= h, hemispheres beyond.
     const auto profile = [&](double y) {

@@ -40,17 +40,27 @@ class Narrowphase {
   // `margin` [m]. B may be a plane or a static triangle mesh; A may not.
   void collide(const Shape& shapeA, const CollisionShape& cA, const Pose& poseA, const Shape& shapeB,
                const CollisionShape& cB, const Pose& poseB, double margin, ContactPatch& out);
-  // Overlapping box pairs get their normal and depth from the separating-axis test; with this
-  // set, from FCL as every other pair (the general path the fast one is tested against).
-  void useFclForOverlappingBoxes(bool on) { fclBoxBox_ = on; }
+  // Overlapping boxes, and spheres and capsules against boxes, get their normal and depth in
+  // closed form (separating axes, closest points); with this set, from FCL as every other pair:
+  // the general path the closed forms are tested against.
+  void useGeneralPath(bool on) { generalPath_ = on; }
 
  private:
-  bool fclBoxBox_ = false;
+  bool generalPath_ = false;
   fcl::CollisionRequestd request_;
   fcl::CollisionResultd result_;
   fcl::DistanceRequestd distanceRequest_;
   fcl::DistanceResultd distanceResult_;
 };
+
+// A sphere or capsule against a box in closed form, exposed for tests: false if they are further
+// apart than `margin`, else the unit normal n from the box towards the round shape, the gap
+// along it (the distance when apart, minus the penetration depth when overlapping [m]) and a point
+// on the box. The core segment against the box: its closest points when the core is outside the
+// box, else the axis of least overlap among the box's face normals and the crossings of the
+// segment with the box's edges, the radius added.
+bool roundBoxContact(const Shape& round, const Pose& poseR, const Shape& box, const Pose& poseBox, double margin,
+                     Vec3& n, double& gap, Vec3& onBox);
 
 // Reduces a patch to at most four points that keep its area: the deepest, the one furthest from
 // it, then the two that enlarge the enclosed area most.
