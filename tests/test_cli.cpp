@@ -222,7 +222,8 @@ TEST(Cli, InterruptedRunLeavesNoTemporary) {
 
 // The progress bar is drawn on a terminal only, and -q silences it there too.
 TEST(Cli, ProgressBarOnlyOnATerminalAndNotWithQuiet) {
-  const std::string args = "run assets/scenes/pyramid.json --seconds 40";  // well over a second of wall time
+  // runSubstepOnTerminal draws the bar from the start ($SUBSTEP_PROGRESS_DELAY=0): a short run will do.
+  const std::string args = "run assets/scenes/pyramid.json --seconds 2";
   Outcome r = substep_test::runSubstepOnTerminal(args);
   EXPECT_NE(r.output.find("run ["), std::string::npos) << r.output;
   r = substep_test::runSubstepOnTerminal(args + " -q");
@@ -318,8 +319,8 @@ TEST(Cli, RunWritesTrajectoryAndMetrics) {
 TEST(Cli, FailedRunLeavesNothingBehind) {
   const fs::path traj = scratch("never.csv");
   fs::remove(traj);
-  const Outcome r = run("run assets/scenes/pile.json --algo a1 --steps 200 --trajectory " + traj.string());
-  EXPECT_EQ(r.status, 1) << r.output;  // A1 refuses a 1000-box pile: too many rows for a dense solve
+  const Outcome r = run("run assets/scenes/pyramid.json --algo a1 --steps 200 --trajectory " + traj.string());
+  EXPECT_EQ(r.status, 1) << r.output;  // A1 refuses the pyramid at its first step: too many rows for a dense solve
   EXPECT_NE(r.output.find("a1 solves the MLCP with a dense"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(traj));
   for (const auto& e : fs::directory_iterator(traj.parent_path()))
