@@ -445,7 +445,7 @@ TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
   // The random poses cover both sides of the margin and the round pairs.
   EXPECT_GT(reported, 300);
   EXPECT_GT(dropped, 300);
-  EXPECT_GT(compared, 30);
+  EXPECT_GT(compared, 20);
 }
 
 // An independent reference for a sphere or capsule against a box: the distance from a point to a
@@ -542,10 +542,10 @@ TEST(Narrowphase, RoundAgainstBoxMatchesTheReference) {
 // Overlapping boxes: the separating-axis fast path against the general path (FCL's collide, then
 // the same clipping), on random pairs of random sizes that overlap by up to a fifth of their
 // size. Ours takes the axis of least overlap among the 15, the exact penetration depth: moving A
-// out by it along our normal leaves the pair touching (checked with FCL), and FCL's depth, an
-// estimate for edge contacts, is never more than 0.2 mm below it. Where FCL finds the same normal
-// (face contacts, nine pairs in ten) the two manifolds are the same points with the same depths
-// to 1e-9 m, in any order.
+// out by it along our normal leaves the pair touching (checked with FCL), and along FCL's normal
+// the boxes overlap at least as much. Where FCL finds the same normal (face contacts, nine pairs
+// in ten) the two manifolds are the same points with the same depths to 1e-9 m, in any order.
+// (FCL's own depth number, libccd's MPR estimate, was up to 2.6 % below the exact one here.)
 TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
   uint64_t seed = 5;
   auto uniform = [&] {
@@ -588,11 +588,22 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
     };
     if (deepest(theirs) <= 1e-6) continue;  // only touching
     ++overlapping;
-    // Ours is the least overlap over all directions; FCL's, an estimate, is never much below it.
-    EXPECT_LE(deepest(ours), deepest(theirs) + 2e-4) << "trial " << trial;
+    // The separating axes' depth: the least overlap over all directions, so along FCL's normal
+    // the boxes overlap at least as much (the projections of the two boxes on it, measured here).
+    Vec3 axis;
+    const double depth = -boxBoxGap(a.halfExtents, pa, b.halfExtents, pb, axis);
+    EXPECT_NEAR(axis.dot(ours.p[0].n), 1, 1e-12) << "trial " << trial;
+    {
+      const Vec3 L = theirs.p[0].n;
+      const Mat3 RA = pa.q.toRotationMatrix(), RB = pb.q.toRotationMatrix();
+      double reach = 0;
+      for (int i = 0; i < 3; ++i)
+        reach += a.halfExtents[i] * std::abs(L.dot(RA.col(i))) + b.halfExtents[i] * std::abs(L.dot(RB.col(i)));
+      EXPECT_GE(reach - std::abs(L.dot(pb.p - pa.p)), depth - 1e-9) << "trial " << trial;
+    }
     // And it is a separating translation: A moved out by it along our normal touches B, FCL says.
     {
-      const Pose moved{pa.p + (deepest(ours) + 1e-7) * ours.p[0].n, pa.q};
+      const Pose moved{pa.p + (depth + 1e-7) * axis, pa.q};
       fcl::CollisionRequestd req(1, true);
       fcl::CollisionResultd res;
       auto tf = [](const Pose& p) {

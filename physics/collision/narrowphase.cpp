@@ -448,6 +448,10 @@ bool roundBoxContact(const Shape& round, const Pose& poseR, const Shape& box, co
   return true;
 }
 
+double boxBoxGap(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, Vec3& axis) {
+  return boxGapLowerBound(hA, A, hB, B, &axis);
+}
+
 void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose& poseA, const Shape& sB,
                           const CollisionShape& cB, const Pose& poseB, double margin, ContactPatch& out) {
   out.count = 0;

@@ -53,6 +53,11 @@ class Narrowphase {
   fcl::DistanceResultd distanceResult_;
 };
 
+// Two boxes by their 15 separating axes, exposed for tests: the largest gap along them [m] (apart:
+// a lower bound on the distance; overlapping: minus the exact penetration depth) and its axis,
+// from B towards A.
+double boxBoxGap(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, Vec3& axis);
+
 // A sphere or capsule against a box in closed form, exposed for tests: false if they are further
 // apart than `margin`, else the unit normal n from the box towards the round shape, the gap
 // along it (the distance when apart, minus the penetration depth when overlapping [m]) and a point
