@@ -474,9 +474,9 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
     if (gap > margin) return;  // further apart than the margin: no contact and no speculative point
     // The separating axis is the normal and its gap the (negative) depth, whether the boxes are
     // apart within the margin, touching (stacked by a generator) or overlapping. Overlapping, the
-    // axis of least overlap over all 15 is the exact penetration depth and direction, what FCL's
-    // own box-box test (ODE's dBoxBox) computes, but without FCL's allocations and its transform
-    // conversions (the fast path is tested against it on random pairs). Apart, the gap is a lower
+    // axis of least overlap over all 15 is the exact penetration depth and direction; FCL, as
+    // called here, gives the same on face contacts and an estimate on edge contacts, and
+    // allocates on every query (the fast path is tested against it on random pairs). Apart, the gap is a lower
     // bound on the distance (exact when a face is closest), so a speculative point may stop the
     // boxes a little early, never late; FCL would need collide and distance here (and for
     // touching boxes a third, nudged collide): its box-box distance was the largest part of s1
