@@ -524,17 +524,22 @@ ScalingRun scalingRunInChild(const Case& c, int boxes, int steps) {
   std::cout.flush();
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) {
+  if (pid == 0) {  // the child: never returns into the parent's code, whatever happens
     close(fd[0]);
-    SceneLimits lim;
-    lim.maxBodies = boxes + 1;
-    const Scene scene = parseScene(pileSceneText(boxes), "pile", ".", lim);
-    std::vector<double> times(static_cast<size_t>(steps));
-    Run r = c.engine == Engine::Substep ? runSubstep(scene, caseSettings(c, 1.0 / 60.0), steps, times)
-                                        : runBullet(scene, 1.0 / 60.0, c.iterations, steps, times);
-    const double out[3] = {r.total, static_cast<double>(r.contacts), r.finite ? 1.0 : 0.0};
-    const ssize_t w = write(fd[1], out, sizeof out);
-    _exit(w == static_cast<ssize_t>(sizeof out) ? 0 : 1);
+    try {
+      SceneLimits lim;
+      lim.maxBodies = boxes + 1;
+      const Scene scene = parseScene(pileSceneText(boxes), "pile", ".", lim);
+      std::vector<double> times(static_cast<size_t>(steps));
+      Run r = c.engine == Engine::Substep ? runSubstep(scene, caseSettings(c, 1.0 / 60.0), steps, times)
+                                          : runBullet(scene, 1.0 / 60.0, c.iterations, steps, times);
+      const double out[3] = {r.total, static_cast<double>(r.contacts), r.finite ? 1.0 : 0.0};
+      const ssize_t w = write(fd[1], out, sizeof out);
+      _exit(w == static_cast<ssize_t>(sizeof out) ? 0 : 1);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "substep-bench: %s run of %d boxes: %s\n", c.id, boxes, e.what());
+    }
+    _exit(1);
   }
   close(fd[1]);
   double in[3] = {0, 0, 0};
