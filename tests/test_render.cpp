@@ -209,8 +209,11 @@ TEST(SceneBuilder, GroundsBelowEverythingCastNoShadow) {
   const DrawList dl = buildDrawList(pile.model, settled, nullptr, defaultCamera(pile), {}, {});
   EXPECT_TRUE(flagsOf(dl, pile.model, "ground") & kNoShadow);
   EXPECT_FALSE(flagsOf(dl, pile.model, "step_0") & kNoShadow);
-  for (const Instance& in : dl.solids)
-    if (!pile.model.bodies[static_cast<size_t>(in.body)].isStatic) EXPECT_FALSE(in.flags & kNoShadow);
+  for (const Instance& in : dl.solids) {
+    if (!pile.model.bodies[static_cast<size_t>(in.body)].isStatic) {
+      EXPECT_FALSE(in.flags & kNoShadow);
+    }
+  }
   // A body sunk 10 cm into the ground's top (beyond a resting contact): the ground casts again.
   const int b = pile.model.bodyIndex("ragdoll_0_pelvis");
   ASSERT_GE(b, 0);
