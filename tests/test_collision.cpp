@@ -69,6 +69,19 @@ void expectConsistent(const ContactPatch& p) {
   }
 }
 
+// A reproducible uniform number in [0, 1) (a 64-bit LCG, Knuth's MMIX constants), advancing seed.
+double unitRandom(uint64_t& seed) {
+  seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+  return static_cast<double>(seed >> 11) / 9007199254740992.0;
+}
+
+// The deepest point's depth of a patch (-1e9 for an empty one) [m].
+double deepestDepth(const ContactPatch& p) {
+  double d = -1e9;
+  for (int i = 0; i < p.count; ++i) d = std::max(d, p.p[i].depth);
+  return d;
+}
+
 }  // namespace
 
 TEST(Narrowphase, BoxRestingOnGroundHasFourCorners) {
@@ -334,10 +347,7 @@ TEST(Manifold, PairShiftBoundsTheMotionOfEveryPoint) {
   cache.add(0, 1, A0, B0, 0.5, 0, p, b.boundingRadius());
   const Manifold& m = cache.manifolds()[0];
   uint64_t seed = 7;
-  auto uniform = [&] {
-    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
-    return static_cast<double>(seed >> 11) / 9007199254740992.0 * 2 - 1;
-  };
+  auto uniform = [&] { return unitRandom(seed) * 2 - 1; };
   for (int trial = 0; trial < 200; ++trial) {
     const double scale = trial < 100 ? 1e-3 : 0.3;  // small moves (the cache's range) and large ones
     const Pose A{A0.p + scale * Vec3(uniform(), uniform(), uniform()), A0.q * Rq(scale * Vec3(uniform(), uniform(), uniform()))};
@@ -389,10 +399,7 @@ TEST(Manifold, ReuseKeepsPointsImpulsesAndRemeasuresDepth) {
 TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
   const Shape shapes[] = {box(0.4, 0.2, 0.3), capsule(0.1, 0.3), sphere(0.25), capsule(0.2, 0.05), box(0.05, 0.5, 0.1)};
   uint64_t seed = 11;
-  auto uniform = [&] {
-    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
-    return static_cast<double>(seed >> 11) / 9007199254740992.0 * 2 - 1;
-  };
+  auto uniform = [&] { return unitRandom(seed) * 2 - 1; };
   const double margin = 0.03;
   int reported = 0, dropped = 0, compared = 0;
   for (int trial = 0; trial < 3000; ++trial) {
@@ -435,9 +442,7 @@ TEST(Narrowphase, ClosedFormsAgreeWithFcl) {
     // core segments give the exact one. Round shapes against boxes: RoundAgainstBoxMatchesTheReference.)
     const bool round = a.type != ShapeType::Box && b.type != ShapeType::Box;
     if (round && ours.count > 0 && fclDepth < -1e-3) {
-      double deepest = -1e9;
-      for (int i = 0; i < ours.count; ++i) deepest = std::max(deepest, ours.p[i].depth);
-      EXPECT_NEAR(deepest, fclDepth, 1e-5) << "trial " << trial;
+      EXPECT_NEAR(deepestDepth(ours), fclDepth, 1e-5) << "trial " << trial;
       expectConsistent(ours);
       ++compared;
     }
@@ -475,10 +480,7 @@ double coreBoxDistance(const Shape& r, const Pose& pr, const Shape& b, const Pos
 // sit off the exact distance) and how far FCL's estimate (libccd's MPR) is.
 TEST(Narrowphase, RoundAgainstBoxMatchesTheReference) {
   uint64_t seed = 9;
-  auto uniform = [&] {
-    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
-    return static_cast<double>(seed >> 11) / 9007199254740992.0;
-  };
+  auto uniform = [&] { return unitRandom(seed); };
   Narrowphase np, general;
   general.useGeneralPath(true);
   int apart = 0, deepCores = 0, shallow = 0;
@@ -499,11 +501,6 @@ TEST(Narrowphase, RoundAgainstBoxMatchesTheReference) {
       }
       return p;
     };
-    auto deepest = [](const ContactPatch& p) {
-      double d = -1e9;
-      for (int i = 0; i < p.count; ++i) d = std::max(d, p.p[i].depth);
-      return d;
-    };
     double lo = 0, hi = 4;  // B slid out along dir until the reference says apart
     for (int k = 0; k < 60; ++k) {
       const double mid = 0.5 * (lo + hi);
@@ -518,7 +515,7 @@ TEST(Narrowphase, RoundAgainstBoxMatchesTheReference) {
     const ContactPatch ours = patch(np);
     ASSERT_GT(ours.count, 0) << "trial " << trial;
     expectConsistent(ours);
-    worstPatch = std::max(worstPatch, std::abs(deepest(ours) + gap));
+    worstPatch = std::max(worstPatch, std::abs(deepestDepth(ours) + gap));
     if (gap > 0) {
       EXPECT_NEAR(gap, coreBoxDistance(r, pr, b, pb) - r.radius, 1e-9) << "trial " << trial;
       ++apart;
@@ -529,7 +526,7 @@ TEST(Narrowphase, RoundAgainstBoxMatchesTheReference) {
     const double after = coreBoxDistance(r, moved, b, pb) - r.radius;
     EXPECT_GT(after, -1e-9) << "trial " << trial << " depth " << -gap;
     EXPECT_LT(after, 1e-9) << "trial " << trial << " depth " << -gap;
-    worstFcl = std::max(worstFcl, std::abs(deepest(patch(general)) + gap) / -gap);
+    worstFcl = std::max(worstFcl, std::abs(deepestDepth(patch(general)) + gap) / -gap);
   }
   std::printf("round shapes against boxes: %d apart, %d overlapping with the core outside, %d with it inside;"
               " manifolds' deepest point up to %.1f mm from the gap; FCL's depth up to %.0f %% off\n",
@@ -548,10 +545,7 @@ TEST(Narrowphase, RoundAgainstBoxMatchesTheReference) {
 // (FCL's own depth number, libccd's MPR estimate, was up to 2.6 % below the exact one here.)
 TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
   uint64_t seed = 5;
-  auto uniform = [&] {
-    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
-    return static_cast<double>(seed >> 11) / 9007199254740992.0;
-  };
+  auto uniform = [&] { return unitRandom(seed); };
   Narrowphase fast, general;
   general.useGeneralPath(true);
   int overlapping = 0, same = 0;
@@ -581,12 +575,7 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
     ASSERT_GT(theirs.count, 0) << "trial " << trial;
     ASSERT_GT(ours.count, 0) << "trial " << trial;
     expectConsistent(ours);
-    auto deepest = [](const ContactPatch& p) {
-      double d = -1e9;
-      for (int i = 0; i < p.count; ++i) d = std::max(d, p.p[i].depth);
-      return d;
-    };
-    if (deepest(theirs) <= 1e-6) continue;  // only touching
+    if (deepestDepth(theirs) <= 1e-6) continue;  // only touching
     ++overlapping;
     // The separating axes' depth: the least overlap over all directions, so along FCL's normal
     // the boxes overlap at least as much (the projections of the two boxes on it, measured here).
@@ -620,7 +609,7 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
     const double angle = std::acos(std::min(1.0, ours.p[0].n.dot(theirs.p[0].n)));
     if (angle > 1e-6) {  // mostly edge contacts, where FCL's normal is an estimate
       worstAngle = std::max(worstAngle, angle);
-      worstDepth = std::max(worstDepth, deepest(theirs) - deepest(ours));
+      worstDepth = std::max(worstDepth, deepestDepth(theirs) - deepestDepth(ours));
       continue;
     }
     ++same;

@@ -16,6 +16,7 @@
 // displacement from the start (after 1 s and at the end), the fastest body, the joints' anchor
 // separation and how far joint angles are beyond their limits (physics/constraints/joints.h).
 #include "lab/bullet_peer.h"
+#include "lab/chart.h"
 #include "lab/provenance.h"
 #include "app/common.h"
 #include "physics/constraints/joints.h"
@@ -553,17 +554,6 @@ ScalingRun scalingRunInChild(const Case& c, int boxes, int steps) {
   return ScalingRun{in[0], static_cast<int>(in[1]), in[2] != 0, usage.ru_maxrss};
 }
 
-// Least-squares slope of log y against log x.
-double logLogSlope(const std::vector<double>& x, const std::vector<double>& y) {
-  double sx = 0, sy = 0, sxx = 0, sxy = 0;
-  const double n = static_cast<double>(x.size());
-  for (size_t i = 0; i < x.size(); ++i) {
-    const double lx = std::log(x[i]), ly = std::log(y[i]);
-    sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly;
-  }
-  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
-}
-
 constexpr double kScalingGoal = 1.1;
 
 int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes, int steps, int repeat,
@@ -577,7 +567,7 @@ int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes
   nlohmann::json list = nlohmann::json::array();
   bool allFinite = true;
   for (const Case* c : cases) {
-    std::vector<double> x, y;
+    std::vector<std::pair<double, double>> timeByBoxes;  // (boxes, step time)
     std::vector<long> peaks;
     nlohmann::json rows = nlohmann::json::array();
     for (int boxes : sizes) {
@@ -588,8 +578,7 @@ int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes
       long peak = 0;
       for (const ScalingRun& r : runs) peak = std::max(peak, r.peakKiB);
       allFinite = allFinite && m.finite;
-      x.push_back(boxes);
-      y.push_back(m.step);
+      timeByBoxes.emplace_back(boxes, m.step);
       peaks.push_back(peak);
       std::printf("%-16s %7d %11.3f %9d %10.1f %12.2f%s\n", c->label, boxes, m.step * 1e3, m.contacts, peak / 1024.0,
                   m.step / boxes * 1e6, m.finite ? "" : "  NOT FINITE");
@@ -597,15 +586,16 @@ int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes
       rows.push_back({{"boxes", boxes}, {"step_ms", m.step * 1e3}, {"contact_points", m.contacts},
                       {"peak_rss_kib", peak}, {"finite", m.finite}});
     }
-    const double slope = x.size() > 1 ? logLogSlope(x, y) : NAN;
+    const double slope = lab::logSlope(timeByBoxes);  // NaN for fewer than two sizes
     nlohmann::json entry = {{"case", c->id}, {"label", c->label}, {"sizes", rows}, {"slope", slope}};
     std::printf("%-16s slope of log step time against log boxes: %.3f (goal at most %.1f: %s)\n", c->label, slope,
                 kScalingGoal, slope <= kScalingGoal ? "MET" : "NOT MET");
-    if (x.size() > 1) {
-      const double perBody = (peaks.back() - peaks.front()) * 1024.0 / (x.back() - x.front());
+    if (timeByBoxes.size() > 1) {
+      const double first = timeByBoxes.front().first, last = timeByBoxes.back().first;
+      const double perBody = (peaks.back() - peaks.front()) * 1024.0 / (last - first);
       std::printf("%-16s peak resident memory %.1f MiB at %d boxes; %.2f KiB a box (from %d to %d boxes)\n",
-                  c->label, peaks.back() / 1024.0, static_cast<int>(x.back()), perBody / 1024.0,
-                  static_cast<int>(x.front()), static_cast<int>(x.back()));
+                  c->label, peaks.back() / 1024.0, static_cast<int>(last), perBody / 1024.0, static_cast<int>(first),
+                  static_cast<int>(last));
       entry["bytes_per_box"] = perBody;
     }
     std::printf("\n");
