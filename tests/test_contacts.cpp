@@ -220,17 +220,17 @@ TEST(FrictionWarmStart, ImpulseCarriesAcrossTheTangentBasisSwitch) {
   const int f = cs.frictions[0].row;
   cs.rows[static_cast<size_t>(f)].lambda = 0.3;
   cs.rows[static_cast<size_t>(f + 1)].lambda = -0.2;
-  const Vec3 before = 0.3 * cs.rows[static_cast<size_t>(f)].linA - 0.2 * cs.rows[static_cast<size_t>(f + 1)].linA;
+  const Vec3 before = 0.3 * cs.rows[static_cast<size_t>(f)].lin - 0.2 * cs.rows[static_cast<size_t>(f + 1)].lin;
   cs.storeImpulses(ms);
   // The ground turns by 0.9 degrees: its normal crosses |n.x| = 0.57735 and the tangents switch.
   poses = {groundTurnedTo(n2), Pose{n2, Quat::Identity()}};
   cs.build(model, ms, poses, mass, st, 1.0 / 60, 1.0);
   const Row* fr = &cs.rows[static_cast<size_t>(cs.frictions[0].row)];
-  const Vec3 after = fr[0].lambda * fr[0].linA + fr[1].lambda * fr[1].linA;
+  const Vec3 after = fr[0].lambda * fr[0].lin + fr[1].lambda * fr[1].lin;
   const Quat turn = Quat::FromTwoVectors(n1, n2);
   std::printf("friction impulse carried: |before| %.4f, |after| %.4f, difference from the turned impulse %.2e; "
               "old tangent t1 · new t1 = %.3f\n",
-              before.norm(), after.norm(), (after - turn * before).norm(), fr[0].linA.dot(turn * before.normalized()));
+              before.norm(), after.norm(), (after - turn * before).norm(), fr[0].lin.dot(turn * before.normalized()));
   EXPECT_LT((after - turn * before).norm(), 1e-9);  // the same impulse, turned with the ground
 }
 

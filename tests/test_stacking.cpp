@@ -104,7 +104,7 @@ double transientGrowth(int levels, int sweeps, double kappa = 1) {
     // The load-bearing rows (vertical normals); not the speculative points across the 1 cm gaps
     // between neighbours of one level, which only stop them from closing the gap.
     const Row& r = cs.rows[static_cast<size_t>(c.row)];
-    if (std::abs(r.linA.y()) > 0.9) rows.push_back(r);
+    if (std::abs(r.lin.y()) > 0.9) rows.push_back(r);
   }
   EXPECT_EQ(rows.size(), static_cast<size_t>(4 * levels * levels));  // 4 corners on L ground and L(L-1) box faces
   const size_t nb = s.model.bodies.size();

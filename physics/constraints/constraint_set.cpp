@@ -8,6 +8,17 @@
 
 namespace substep {
 
+namespace {
+
+// x / n, as a product where that is exact (n = 1, 2, 4: four points is the usual manifold, and
+// three divisions a point were a measurable part of formulating it).
+template <class T>
+T share(const T& x, int n) {
+  return (n & (n - 1)) == 0 ? T(x * (1.0 / n)) : T(x / n);
+}
+
+}  // namespace
+
 void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manifolds, const std::vector<Pose>& poses,
                           const std::vector<BodyMass>& mass, const SolverSettings& settings, double h,
                           double applyScale) {
@@ -20,6 +31,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   rows.clear();
   units.clear();
   blocks.clear();
+  couplings.clear();
   contacts.clear();
   joints.clear();
 
@@ -91,12 +103,12 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       // (the report has none) it stays in the manifold but holds nothing until it touches.
       r.speculative = r.bias < 0 && speculative_;
       if (r.bias < 0 && !speculative_) r.hi = r.lambda = 0;
-      f.localA += p.localA / m.count;
-      f.localB += p.localB / m.count;
+      f.localA += share(p.localA, m.count);  // the centroids
+      f.localB += share(p.localB, m.count);
       normalSum += p.localN;
     }
     f.localN = normalSum.normalized();
-    for (int k = 0; k < m.count; ++k) f.radius += (m.points[k].localA - f.localA).norm() / m.count;
+    for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm(), m.count);
     f.row = static_cast<int>(rows.size());
     f.qB = poses[static_cast<size_t>(m.b)].q;
     rows.resize(rows.size() + 3);
@@ -106,8 +118,8 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       // Last step's tangential impulse, a vector fixed in B, projected on this step's tangents:
       // whichever basis the new normal gets, the impulse carries over.
       const Vec3 P = B.rotate(m.frictionImpulse);
-      fr[0].lambda = P.dot(fr[0].linA);
-      fr[1].lambda = P.dot(fr[1].linA);
+      fr[0].lambda = P.dot(fr[0].lin);
+      fr[1].lambda = P.dot(fr[1].lin);
       fr[2].lambda = m.twistImpulse;
     }
     if (!settings.frictionExempt)
@@ -132,7 +144,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   };
   auto frictionUnits = [&] {
     for (const FrictionDef& f : frictions)
-      units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction});
+      units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction, -1});
   };
   if (settings.warmStart) {
     frictionUnits();
@@ -157,36 +169,39 @@ void ConstraintSet::formulateJoint(const JointRef& ref, const std::vector<Pose>&
 namespace {
 
 // The inverse of the leading n x n block of a symmetric positive definite K (n <= 4) by
-// Cholesky, the rest of inv the identity; false if K is not positive definite to working
-// precision.
+// K = L D Lᵀ (L unit lower triangular), the rest of inv the identity; false if K is not positive
+// definite to working precision (a pivot Dᵢ <= 1e-14 Kᵢᵢ, Cholesky's test on Lᵢᵢ²). No square
+// roots and one division per pivot: Cholesky's chain of square roots and divisions was most of
+// a contact block's formulation.
 bool invertSpd(const Eigen::Matrix4d& K, int n, Eigen::Matrix4d& inv) {
-  double L[4][4] = {};
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j <= i; ++j) {
+  double L[4][4] = {}, D[4] = {}, invD[4] = {};
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < i; ++j) {  // L[i][j] Dⱼ = Kᵢⱼ - Σₖ L[i][k] Dₖ L[j][k]
       double s = K(i, j);
-      for (int k = 0; k < j; ++k) s -= L[i][k] * L[j][k];
-      if (i == j) {
-        if (!(s > 1e-14 * K(i, i))) return false;
-        L[i][i] = std::sqrt(s);
-      } else {
-        L[i][j] = s / L[j][j];
-      }
+      for (int k = 0; k < j; ++k) s -= L[i][k] * D[k] * L[j][k];
+      L[i][j] = s * invD[j];
     }
-  // L⁻¹ (lower triangular), then K⁻¹ = L⁻ᵀ L⁻¹.
+    double d = K(i, i);
+    for (int k = 0; k < i; ++k) d -= L[i][k] * D[k] * L[i][k];
+    if (!(d > 1e-14 * K(i, i))) return false;
+    D[i] = d;
+    invD[i] = 1 / d;
+  }
+  // L⁻¹ (unit lower triangular), then K⁻¹ = L⁻ᵀ D⁻¹ L⁻¹.
   double M[4][4] = {};
   for (int i = 0; i < n; ++i) {
-    M[i][i] = 1 / L[i][i];
+    M[i][i] = 1;
     for (int j = 0; j < i; ++j) {
       double s = 0;
       for (int k = j; k < i; ++k) s -= L[i][k] * M[k][j];
-      M[i][j] = s / L[i][i];
+      M[i][j] = s;
     }
   }
   inv.setIdentity();
   for (int i = 0; i < n; ++i)
     for (int j = 0; j <= i; ++j) {
       double s = 0;
-      for (int k = i; k < n; ++k) s += M[k][i] * M[k][j];
+      for (int k = i; k < n; ++k) s += M[k][i] * invD[k] * M[k][j];
       inv(i, j) = inv(j, i) = s;
     }
   return true;
@@ -205,8 +220,16 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
   // A block's rows share their two bodies (one joint part, one manifold), so its Γ entries are
   // J̌ᵢ · M̌⁻¹J̌ₖᵀ with the latter already in the rows (scaled by applyScale: undone here).
   for (SolveUnit& u : units) {
-    if (u.kind == SolveUnit::Single || u.kind == SolveUnit::Friction || u.first < firstRow || u.first >= lastRow)
+    if (u.kind == SolveUnit::Single || u.first < firstRow || u.first >= lastRow) continue;
+    if (u.kind == SolveUnit::Friction) {
+      if (u.block < 0) {
+        u.block = static_cast<int>(couplings.size());
+        couplings.emplace_back();
+      }
+      const Row* r = &rows[static_cast<size_t>(u.first)];
+      couplings[static_cast<size_t>(u.block)] = {coupling(r[1], r[0]), coupling(r[2], r[0]), coupling(r[2], r[1])};
       continue;
+    }
     if (u.block < 0) {
       u.block = static_cast<int>(blocks.size());
       blocks.emplace_back();
@@ -217,10 +240,10 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
     const Row* b = &rows[static_cast<size_t>(u.first)];
     for (int k = 0; k < u.size; ++k) {
       const double scale = b[k].velocityTarget && motorUnscaled_ ? 1.0 : applyScale;
+      const double unscale = scale > 0 ? 1 / scale : 0;
       for (int i = 0; i <= k; ++i)  // symmetric
         d.K(i, k) = d.K(k, i) =
-            scale > 0 ? (b[i].linA.dot(b[k].mLinA) + b[i].angA.dot(b[k].mAngA) + b[i].linB.dot(b[k].mLinB) +
-                         b[i].angB.dot(b[k].mAngB)) / scale
+            scale > 0 ? coupling(b[i], b[k]) * unscale
                       : gammaEntry(b[i], b[k], mass.data());
     }
     Eigen::Matrix4d K = d.K;
@@ -268,7 +291,7 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
   for (Manifold& m : manifolds) {
     for (int p = 0; p < m.count; ++p) m.points[p].lambda = rows[static_cast<size_t>(contacts[c++].row)].lambda;
     const Row* fr = &rows[static_cast<size_t>(frictions[f].row)];
-    m.frictionImpulse = frictions[f].qB.conjugate() * (fr[0].lambda * fr[0].linA + fr[1].lambda * fr[1].linA);
+    m.frictionImpulse = frictions[f].qB.conjugate() * (fr[0].lambda * fr[0].lin + fr[1].lambda * fr[1].lin);
     m.twistImpulse = fr[2].lambda;
     if (frictions[f].unit >= 0)
       m.blockMask = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[f].unit)].block)].lastMask;
@@ -277,7 +300,8 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
 }
 
 void ConstraintSet::recordApproach(const Vec3* v, const Vec3* w) {
-  for (ContactDef& c : contacts) c.approach = rowVelocity(rows[static_cast<size_t>(c.row)], v, w);
+  // Only a bouncing pair reads it (applyRestitution): the others skip the row's J̌v̌.
+  for (ContactDef& c : contacts) c.approach = c.restitution != 0 ? rowVelocity(rows[static_cast<size_t>(c.row)], v, w) : 0.0;
 }
 
 double ConstraintSet::maxPenetration(const std::vector<Pose>& poses) const {

@@ -45,6 +45,7 @@ class ConstraintSet {
   std::vector<Row> rows;
   std::vector<SolveUnit> units;
   std::vector<BlockData> blocks;  // of the stable and contact blocks
+  std::vector<FrictionCoupling> couplings;  // of the Friction units (their SolveUnit::block)
   std::vector<ContactDef> contacts;    // one normal row per contact point
   std::vector<FrictionDef> frictions;  // three friction rows per manifold
   std::vector<JointRef> joints;

@@ -16,9 +16,8 @@ template <class P>
 inline void axisRow(Row& r, int a, int b, const P& A, const P& B, const Vec3& rA, const Vec3& rB, const Vec3& u) {
   r.a = a;
   r.b = b;
-  r.linA = u;
+  r.lin = u;  // -u on B
   r.angA = A.unrotate(rA.cross(u));
-  r.linB = -u;
   r.angB = -B.unrotate(rB.cross(u));
 }
 
@@ -28,9 +27,8 @@ template <class P>
 inline void angleRow(Row& r, int a, int b, const P& A, const P& B, const Vec3& u) {
   r.a = a;
   r.b = b;
-  r.linA.setZero();
+  r.lin.setZero();
   r.angA = A.unrotate(u);
-  r.linB.setZero();
   r.angB = -B.unrotate(u);
 }
 

@@ -1,8 +1,8 @@
 // One row of the report's local Jacobian J̌ (section III.1) between two bodies, with what the
-// iterative solvers precompute for it, in flat arrays: 12 Jacobian numbers, M̌⁻¹J̌ᵀ and the
-// effective mass. Translational parts are in the world frame; rotational parts in each body's
-// frame (the report's R_j⁻¹ k), so they multiply the local angular velocity v̌ directly and the
-// rotational inverse mass is the constant diagonal M̌⁻¹ = diag(1/I1, 1/I2, 1/I3).
+// iterative solvers precompute for it: its Jacobian numbers, M̌⁻¹J̌ᵀ and the effective mass.
+// Translational parts are in the world frame; rotational parts in each body's frame (the
+// report's R_j⁻¹ k), so they multiply the local angular velocity v̌ directly and the rotational
+// inverse mass is the constant diagonal M̌⁻¹ = diag(1/I1, 1/I2, 1/I3).
 #pragma once
 
 #include "physics/math.h"
@@ -18,12 +18,17 @@ struct BodyMass {
   Vec3 invI = Vec3::Zero();     // M̌⁻¹, rotational [1/(kg m^2)]
 };
 
+// Every row is built from the parts in parts.h (an axis or an angle part), so J̌ on B's translation
+// is always minus J̌ on A's: one vector `lin` holds both, and M̌⁻¹J̌ᵀ's translational parts are the
+// bodies' (scaled) inverse masses times it: 208 bytes a row, 264 with both halves stored. The
+// arithmetic below is that of the two halves, term for term, so that (with κ = 1) every number
+// is the same to the last bit as with both stored.
 struct Row {
   int a = 0, b = 0;                                    // bodies
-  Vec3 linA = Vec3::Zero(), angA = Vec3::Zero();       // J̌ on A: world translation, A-frame rotation
-  Vec3 linB = Vec3::Zero(), angB = Vec3::Zero();       // J̌ on B
-  Vec3 mLinA = Vec3::Zero(), mAngA = Vec3::Zero();     // M̌⁻¹J̌ᵀ on A: velocity change per unit impulse
-  Vec3 mLinB = Vec3::Zero(), mAngB = Vec3::Zero();     // M̌⁻¹J̌ᵀ on B
+  Vec3 lin = Vec3::Zero();                             // J̌ on A's translation (world); on B's: -lin
+  Vec3 angA = Vec3::Zero(), angB = Vec3::Zero();       // J̌ on A's and B's rotation, each in its body's frame
+  Vec3 mAngA = Vec3::Zero(), mAngB = Vec3::Zero();     // M̌⁻¹J̌ᵀ, rotational: angular velocity change per unit impulse
+  double mA = 0, mB = 0;                               // M̌⁻¹J̌ᵀ, translational: mA lin on A, -mB lin on B [1/kg]
   double effMass = 0;                                  // 1 / (J̌ M̌⁻¹ J̌ᵀ)
   double bias = 0;                                     // β [m/s or rad/s]
   double lo = -kInfinity, hi = kInfinity;              // bounds of λ; friction rows: ±μ, times Σλ of their normals
@@ -44,8 +49,9 @@ struct Row {
 // bounds; an unbounded 'stable' block (2 or 3 rows), solved by inverting its block of
 // Γ = J̌M̌⁻¹J̌ᵀ (IV.2.2 item 2); or a contact block, the normal rows of one manifold (up to 4),
 // solved as the small MLCP it is (λ >= 0). A manifold's three friction rows are a Friction unit:
-// solved row after row exactly as three singles, with their two bodies' velocities and the
-// normals' Σλ that bounds them read once.
+// solved row after row as three singles, with their two bodies' velocities and the normals' Σλ
+// that bounds them read once, and each row's J̌v̌ updated from the earlier rows' Δλ by their
+// coupling (FrictionCoupling) instead of from the velocities they changed.
 struct SolveUnit {
   enum Kind : unsigned char { Single, Stable, Contact, Friction };
   int first = 0;
@@ -60,6 +66,19 @@ struct BlockData {
   int lastMask = -1;  // contact blocks: the proper active set that fitted last (bit i: row i pushes)
 };
 
+// A Friction unit's couplings: how its later rows' J̌v̌ move per unit Δλ of its earlier ones,
+// J̌ᵢ (M̌⁻¹J̌ⱼᵀ as the rows apply it, scaled by κ under A5). Gauss-Seidel over the three rows is
+// then the same arithmetic, up to rounding, with the chain from one row's Δλ to the next row's
+// J̌v̌ one product long instead of a velocity update and a twelve-term dot product.
+struct FrictionCoupling {
+  double g10 = 0, g20 = 0, g21 = 0;
+};
+
+// J̌ᵢ M̌⁻¹J̌ⱼᵀ of two rows on the same two bodies, with row j's (scaled) M̌⁻¹J̌ᵀ.
+inline double coupling(const Row& i, const Row& j) {
+  return i.lin.dot(j.mA * j.lin) + i.angA.dot(j.mAngA) + i.lin.dot(j.mB * j.lin) + i.angB.dot(j.mAngB);
+}
+
 // Σλ of a friction row's normal rows: what its bounds scale with.
 inline double normalImpulse(const Row& r, const Row* rows) {
   double s = 0;
@@ -68,43 +87,47 @@ inline double normalImpulse(const Row& r, const Row* rows) {
 }
 
 // J̌ v̌ of a row for velocities v (world linear) and w (body-frame angular).
+inline double rowVelocity(const Row& r, const Vec3& vA, const Vec3& wA, const Vec3& vB, const Vec3& wB) {
+  return r.lin.dot(vA) + r.angA.dot(wA) - r.lin.dot(vB) + r.angB.dot(wB);
+}
 inline double rowVelocity(const Row& r, const Vec3* v, const Vec3* w) {
-  return r.linA.dot(v[r.a]) + r.angA.dot(w[r.a]) + r.linB.dot(v[r.b]) + r.angB.dot(w[r.b]);
+  return rowVelocity(r, v[r.a], w[r.a], v[r.b], w[r.b]);
 }
 
 // v̌ += M̌⁻¹J̌ᵀ dλ.
-inline void applyImpulse(const Row& r, double dl, Vec3* v, Vec3* w) {
-  v[r.a] += dl * r.mLinA;
-  w[r.a] += dl * r.mAngA;
-  v[r.b] += dl * r.mLinB;
-  w[r.b] += dl * r.mAngB;
+inline void applyImpulse(const Row& r, double dl, Vec3& vA, Vec3& wA, Vec3& vB, Vec3& wB) {
+  vA += dl * (r.mA * r.lin);
+  wA += dl * r.mAngA;
+  vB -= dl * (r.mB * r.lin);
+  wB += dl * r.mAngB;
 }
+inline void applyImpulse(const Row& r, double dl, Vec3* v, Vec3* w) { applyImpulse(r, dl, v[r.a], w[r.a], v[r.b], w[r.b]); }
 
 // Fills M̌⁻¹J̌ᵀ (scaled by applyScale: the report's boxed κM̌⁻¹ in A5, else 1) and the effective
 // mass, which always uses the unscaled M̌⁻¹ (see docs/algorithms.md, A5 derivation).
 inline void finishRow(Row& r, const BodyMass& A, const BodyMass& B, double applyScale = 1.0) {
-  const Vec3 mLinA = A.invMass * r.linA, mAngA = A.invI.cwiseProduct(r.angA);
-  const Vec3 mLinB = B.invMass * r.linB, mAngB = B.invI.cwiseProduct(r.angB);
-  const double k = r.linA.dot(mLinA) + r.angA.dot(mAngA) + r.linB.dot(mLinB) + r.angB.dot(mAngB);
+  const Vec3 mAngA = A.invI.cwiseProduct(r.angA), mAngB = B.invI.cwiseProduct(r.angB);
+  const double k = r.lin.dot(A.invMass * r.lin) + r.angA.dot(mAngA) + r.lin.dot(B.invMass * r.lin) + r.angB.dot(mAngB);
   r.effMass = k > 0 ? 1.0 / k : 0.0;
-  r.mLinA = applyScale * mLinA;
+  r.mA = applyScale * A.invMass;
+  r.mB = applyScale * B.invMass;
   r.mAngA = applyScale * mAngA;
-  r.mLinB = applyScale * mLinB;
   r.mAngB = applyScale * mAngB;
 }
 
 // Γ entry between rows r and s: J̌_r M̌⁻¹ J̌_sᵀ (zero unless they share a body).
 inline double gammaEntry(const Row& r, const Row& s, const BodyMass* m) {
   double g = 0;
-  auto body = [&](int br, const Vec3& lr, const Vec3& ar, int bs, const Vec3& ls, const Vec3& as) {
+  // sr, ss: the sign of each row's translational part on that body (+ on A, - on B).
+  auto body = [&](int br, double sr, const Vec3& ar, int bs, double ss, const Vec3& as) {
     if (br != bs) return;
     const BodyMass& M = m[br];
-    g += M.invMass * lr.dot(ls) + ar.dot(M.invI.cwiseProduct(as));
+    g += sr * ss * M.invMass * r.lin.dot(s.lin) + ar.dot(M.invI.cwiseProduct(as));
   };
-  body(r.a, r.linA, r.angA, s.a, s.linA, s.angA);
-  body(r.a, r.linA, r.angA, s.b, s.linB, s.angB);
-  body(r.b, r.linB, r.angB, s.a, s.linA, s.angA);
-  body(r.b, r.linB, r.angB, s.b, s.linB, s.angB);
+  body(r.a, 1, r.angA, s.a, 1, s.angA);
+  body(r.a, 1, r.angA, s.b, -1, s.angB);
+  body(r.b, -1, r.angB, s.a, 1, s.angA);
+  body(r.b, -1, r.angB, s.b, -1, s.angB);
   return g;
 }
 

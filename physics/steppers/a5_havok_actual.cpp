@@ -42,12 +42,15 @@ class HavokActualStepper final : public Stepper {
     splitPositionErrors(c);
     // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
     // their bias back each sub-step are listed with what they need.
-    refresh_.clear();
+    targets_.clear();
+    speculative_.clear();
     for (size_t k = 0; k < cs.rows.size(); ++k) {
       Row& r = cs.rows[k];
       const bool exact = r.velocityTarget && st.motorUnscaled;  // solved with κ = τ = 1
-      if (r.velocityLevel) refresh_.push_back({k, Refresh::Target, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
-      if (r.speculative) refresh_.push_back({k, Refresh::Speculative, r.bias});
+      // A target row's bias is its base already (friction: 0); it moves only with J̌šʲ, which stays
+      // zero when τ = 0.
+      if (r.velocityLevel && ratio != 0) targets_.push_back({k, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
+      if (r.speculative) speculative_.push_back({k, r.bias});
       if (exact) continue;
       r.bias *= ratio;
       if (r.normalRow < 0) {  // friction bounds are μ times the normal's λ̄ already
@@ -65,16 +68,18 @@ class HavokActualStepper final : public Stepper {
     addExternal(c, dt);  // ŵ¹ = v̌⁰ + ext (š¹ = 0)
     for (int j = 0; j < n; ++j) {
       startSubStepImpulses(c, j);
-      for (const Refreshed& f : refresh_) {
-        Row& r = cs.rows[f.row];
-        // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step.
-        const double shift = j > 0 ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;  // J̌šʲ
-        if (f.kind == Refresh::Target) {
-          r.bias = f.base + shift;
-        } else {
-          const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
-          r.bias = (beta < 0 ? beta : tau * beta) / kappa + shift;
+      // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step, and š stays zero when τ = 0.
+      const bool shifted = j > 0 && ratio != 0;
+      if (shifted)
+        for (const Refreshed& f : targets_) {
+          Row& r = cs.rows[f.row];
+          r.bias = f.base + rowVelocity(r, sumV_.data(), sumW_.data());
         }
+      for (const Refreshed& f : speculative_) {
+        Row& r = cs.rows[f.row];
+        const double shift = shifted ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;                // J̌šʲ
+        const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
+        r.bias = (beta < 0 ? beta : tau * beta) / kappa + shift;
       }
       for (int i = 0; i < m && !cs.rows.empty(); ++i) {
         if (stableOnly) predictStableRows(c);
@@ -116,11 +121,9 @@ class HavokActualStepper final : public Stepper {
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
 
  private:
-  enum class Refresh { Target, Speculative };
   struct Refreshed {
     size_t row;
-    Refresh kind;
-    double base;  // Target: c·target; Speculative: β¹
+    double base;  // targets: c·target; speculative rows: β¹
   };
 
   // The 'stable' parts of every joint (joints.h: unbounded rows), for JacobianRefresh::Stable.
@@ -159,7 +162,7 @@ class HavokActualStepper final : public Stepper {
       for (int k = 0; k < s.size; ++k) {
         Row& r = cs.rows[static_cast<size_t>(s.ref->first + s.offset + k)];
         const Row& fresh = scratch_[static_cast<size_t>(s.offset + k)];
-        r.linA = fresh.linA, r.angA = fresh.angA, r.linB = fresh.linB, r.angB = fresh.angB;
+        r.lin = fresh.lin, r.angA = fresh.angA, r.angB = fresh.angB;
       }
     }
     cs.refinishJoints(c.mass, c.settings->kappa);
@@ -169,7 +172,7 @@ class HavokActualStepper final : public Stepper {
     const ConstraintSet::JointRef* ref;
     int offset, size;
   };
-  std::vector<Refreshed> refresh_;
+  std::vector<Refreshed> targets_, speculative_;
   std::vector<Vec3> sumV_, sumW_;  // 'SumVelocity' š, linear and angular
   std::vector<Vec3> rawV_, rawW_;  // Σ_{k<j} v̌ᵏ unscaled: speculative rows' βʲ
   std::vector<StableRows> stable_;

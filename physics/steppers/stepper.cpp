@@ -140,6 +140,12 @@ void solveContactBlock(const SolveUnit& u, BlockData& d, Row* rows, const double
   for (int i = 0; i < k; ++i) delta[i] = 0;  // no set fits (round-off at a degenerate point): keep λ
 }
 
+// change = max(change, |Δλ| / m_eff), dividing only for a new maximum (a division per row was a
+// measurable part of a sweep; the result can differ from the plain form in its last bit).
+inline void noteChange(double& change, double dl, double effMass) {
+  if (effMass > 0 && std::abs(dl) > change * effMass) change = std::abs(dl) / effMass;
+}
+
 }  // namespace
 
 SweepScales SweepScales::havok(const SolverSettings& s) {
@@ -166,22 +172,28 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
     const int ia = rows[u.first].a, ib = rows[u.first].b;
     Vec3 va = v[ia], wa = w[ia], vb = v[ib], wb = w[ib];
     if (u.kind == SolveUnit::Friction) {  // three singles in a row, bounded by the same Σλn
-      const double ln = normalImpulse(rows[u.first], rows);
-      for (int i = 0; i < u.size; ++i) {
-        Row& r = rows[u.first + i];
-        const double cb = r.velocityTarget ? k.biasTarget : k.bias;
-        const double cv = r.velocityTarget ? k.velTarget : k.vel;
-        const double jv = r.linA.dot(va) + r.angA.dot(wa) + r.linB.dot(vb) + r.angB.dot(wb);
-        const double next = std::clamp(r.lambda + r.effMass * (cb * r.bias - cv * jv), r.lo * ln, r.hi * ln);
-        const double d = next - r.lambda;
-        r.lambda = next;
-        r.pushed = r.pushed || next > 0;
-        if (d == 0) continue;
-        va += d * r.mLinA;
-        wa += d * r.mAngA;
-        vb += d * r.mLinB;
-        wb += d * r.mAngB;
-        if (r.effMass > 0) change = std::max(change, std::abs(d) / r.effMass);
+      Row* r = &rows[u.first];
+      const FrictionCoupling& g = cs.couplings[static_cast<size_t>(u.block)];
+      const double ln = normalImpulse(r[0], rows);
+      // J̌v̌ of all three at the unit's start; each row's Δλ then moves the later rows' by g.
+      double jv[3] = {rowVelocity(r[0], va, wa, vb, wb), rowVelocity(r[1], va, wa, vb, wb),
+                      rowVelocity(r[2], va, wa, vb, wb)};
+      double d[3];
+      for (int i = 0; i < 3; ++i) {
+        if (i == 1) jv[1] += g.g10 * d[0];
+        if (i == 2) jv[2] += g.g20 * d[0] + g.g21 * d[1];
+        const double cb = r[i].velocityTarget ? k.biasTarget : k.bias;
+        const double cv = r[i].velocityTarget ? k.velTarget : k.vel;
+        const double next =
+            std::clamp(r[i].lambda + r[i].effMass * (cb * r[i].bias - cv * jv[i]), r[i].lo * ln, r[i].hi * ln);
+        d[i] = next - r[i].lambda;
+        r[i].lambda = next;
+        r[i].pushed = r[i].pushed || next > 0;
+      }
+      for (int i = 0; i < 3; ++i) {
+        if (d[i] == 0) continue;
+        applyImpulse(r[i], d[i], va, wa, vb, wb);
+        noteChange(change, d[i], r[i].effMass);
       }
       v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
       continue;
@@ -192,7 +204,7 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
       const Row& r = rows[u.first + i];
       const double cb = r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
       const double cv = r.velocityTarget ? k.velTarget : k.vel;
-      b[i] = cb * r.bias - cv * (r.linA.dot(va) + r.angA.dot(wa) + r.linB.dot(vb) + r.angB.dot(wb));
+      b[i] = cb * r.bias - cv * rowVelocity(r, va, wa, vb, wb);
     }
     BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
     if (u.kind == SolveUnit::Stable) {
@@ -209,11 +221,8 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
       if (dl[i] == 0) continue;
       r.lambda += dl[i];
       r.pushed = r.pushed || r.lambda > 0;
-      va += dl[i] * r.mLinA;
-      wa += dl[i] * r.mAngA;
-      vb += dl[i] * r.mLinB;
-      wb += dl[i] * r.mAngB;
-      if (r.effMass > 0) change = std::max(change, std::abs(dl[i]) / r.effMass);
+      applyImpulse(r, dl[i], va, wa, vb, wb);
+      noteChange(change, dl[i], r.effMass);
     }
     v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
   }

@@ -96,8 +96,8 @@ struct SweepScales {
 // cannot tell the rows' doubles from the velocities' and would read them again.
 template <class Increment>
 inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment increment) {
-  const Vec3 va = v[r.a], wa = w[r.a], vb = v[r.b], wb = w[r.b];
-  double dl = increment(r.linA.dot(va) + r.angA.dot(wa) + r.linB.dot(vb) + r.angB.dot(wb));
+  Vec3 va = v[r.a], wa = w[r.a], vb = v[r.b], wb = w[r.b];
+  double dl = increment(rowVelocity(r, va, wa, vb, wb));
   double lo = r.lo, hi = r.hi;
   if (r.normalRow >= 0) {
     const double ln = normalImpulse(r, rows);
@@ -109,10 +109,8 @@ inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment incr
   r.lambda = next;
   r.pushed = r.pushed || next > 0;
   if (dl == 0) return 0;
-  v[r.a] = va + dl * r.mLinA;
-  w[r.a] = wa + dl * r.mAngA;
-  v[r.b] = vb + dl * r.mLinB;
-  w[r.b] = wb + dl * r.mAngB;
+  applyImpulse(r, dl, va, wa, vb, wb);
+  v[r.a] = va, w[r.a] = wa, v[r.b] = vb, w[r.b] = wb;
   return r.effMass > 0 ? std::abs(dl) / r.effMass : 0;
 }
 
