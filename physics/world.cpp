@@ -98,7 +98,7 @@ bool World::geometry() {
     const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
     // A pair that has barely moved relative to itself since its points were found keeps them.
     const Manifold* old = manifolds_.previous(a, b);
-    if (old && pairShift(*old, pA, pB) < kPairCacheShift) {
+    if (old && pairShiftBelow(*old, pA, pB, kPairCacheShift)) {
       manifolds_.reuse(*old, frames_[static_cast<size_t>(a)], frames_[static_cast<size_t>(b)]);
       ++report_.cachedPairs;
       continue;

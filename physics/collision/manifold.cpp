@@ -33,6 +33,17 @@ double pairShift(const Manifold& m, const Pose& poseA, const Pose& poseB) {
   return (relativePosition(poseA, poseB) - m.relP).norm() + theta * m.reach;
 }
 
+bool pairShiftBelow(const Manifold& m, const Pose& poseA, const Pose& poseB, double limit) {
+  // θ/2 = atan(s/c) <= s/c (s = |turn.vec()|, c = |turn.w()|): if the shift with 2s/c for θ is
+  // below the limit, so is pairShift's, and the arctangent (a tenth of a settled step's
+  // geometry) is not needed.
+  const Quat turn = m.relQ.conjugate() * relativeOrientation(poseA, poseB);
+  const double lin = (relativePosition(poseA, poseB) - m.relP).norm();
+  const double s = turn.vec().norm(), c = std::abs(turn.w());
+  if (c > 0 && lin * c + 2 * s * m.reach < limit * c) return true;
+  return lin + 2 * std::atan2(s, c) * m.reach < limit;
+}
+
 const Manifold* ManifoldCache::previous(int a, int b) {
   // Pairs arrive ordered by their unordered key (min, max); last step's list is in the same order.
   const auto key = [](const Manifold& m) { return std::make_pair(std::min(m.a, m.b), std::max(m.a, m.b)); };

@@ -50,6 +50,8 @@ struct Manifold {
 // How far any point of the pair (within `reach` of its body's origin) has moved relative to the
 // other body since `m` was detected: an upper bound [m].
 double pairShift(const Manifold& m, const Pose& poseA, const Pose& poseB);
+// pairShift(m, poseA, poseB) < limit, mostly without its arctangent.
+bool pairShiftBelow(const Manifold& m, const Pose& poseA, const Pose& poseB, double limit);
 
 // Builds this step's manifolds from narrowphase patches, matching them with last step's.
 class ManifoldCache {

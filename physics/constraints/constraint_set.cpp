@@ -10,12 +10,18 @@ namespace substep {
 
 namespace {
 
-// x / n, as a product where that is exact (n = 1, 2, 4: four points is the usual manifold, and
-// three divisions a point were a measurable part of formulating it).
-template <class T>
-T share(const T& x, int n) {
-  return (n & (n - 1)) == 0 ? T(x * (1.0 / n)) : T(x / n);
-}
+// x / n, as a product by 1/n where that is exact (n = 1, 2, 4: four points is the usual
+// manifold, and three divisions a point were a measurable part of formulating it).
+struct Share {
+  explicit Share(int count) : n(count), inv(1.0 / count), exact((count & (count - 1)) == 0) {}
+  template <class T>
+  T operator()(const T& x) const {
+    return exact ? T(x * inv) : T(x / n);
+  }
+  int n;
+  double inv;
+  bool exact;
+};
 
 }  // namespace
 
@@ -84,6 +90,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     f.firstNormal = static_cast<int>(rows.size());
     f.normalCount = m.count;
     Vec3 normalSum = Vec3::Zero();
+    const Share share(m.count);
     for (int k = 0; k < m.count; ++k) {
       const ManifoldPoint& p = m.points[k];
       ContactDef c;
@@ -103,15 +110,15 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       // (the report has none) it stays in the manifold but holds nothing until it touches.
       r.speculative = r.bias < 0 && speculative_;
       if (r.bias < 0 && !speculative_) r.hi = r.lambda = 0;
-      f.localA += share(p.localA, m.count);  // the centroids
-      f.localB += share(p.localB, m.count);
+      f.localA += share(p.localA);  // the centroids
+      f.localB += share(p.localB);
       normalSum += p.localN;
     }
     f.localN = normalSum.normalized();
-    for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm(), m.count);
+    for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm());
     f.row = static_cast<int>(rows.size());
     f.qB = poses[static_cast<size_t>(m.b)].q;
-    rows.resize(rows.size() + 3);
+    for (int k = 0; k < 3; ++k) rows.emplace_back();  // (resize copies a default row: slower)
     Row* fr = &rows[static_cast<size_t>(f.row)];
     formulateFriction(f, A, B, fr, false);
     if (settings.warmStart) {
