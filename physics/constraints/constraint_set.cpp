@@ -34,7 +34,6 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   motorUnscaled_ = settings.motorUnscaled;
   contactBlocks_ = settings.contactBlocks;
   speculative_ = settings.speculative;
-  rows.clear();
   units.clear();
   blocks.clear();
   couplings.clear();
@@ -50,15 +49,28 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     }
     jointLambda_.assign(static_cast<size_t>(total), 0.0);
   }
+  // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
+  // is reset field by field: constructing them anew zero-filled each (a rep stos, slow to start)
+  // and was a tenth of formulating a pyramid.
+  size_t total = jointLambda_.size();
+  for (const Manifold& m : manifolds) total += static_cast<size_t>(m.count) + 3;
+  rows.resize(total);
+  size_t next = 0;
+  auto take = [&](int n) {
+    Row* r = &rows[next];
+    for (int k = 0; k < n; ++k) resetRow(r[k]);
+    next += static_cast<size_t>(n);
+    return r;
+  };
 
   for (size_t k = 0; k < model.joints.size(); ++k) {
     const Joint& j = model.joints[k];
     const JointLayout layout = jointLayout(j);
     JointRef ref;
     ref.joint = static_cast<int>(k);
-    ref.first = static_cast<int>(rows.size());
+    ref.first = static_cast<int>(next);
     ref.count = layout.rows;
-    rows.resize(rows.size() + static_cast<size_t>(ref.count));
+    take(ref.count);
     formulateJoint(ref, poses, h, false);
     for (int i = 0; i < ref.count; ++i)
       rows[static_cast<size_t>(ref.first + i)].lambda =
@@ -77,7 +89,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   }
 
   // Per manifold: its points' normal rows, then its three friction rows.
-  contactFirstRow = static_cast<int>(rows.size());
+  contactFirstRow = static_cast<int>(next);
   frictions.clear();
   frames_.assign(poses.begin(), poses.end());
   for (const Manifold& m : manifolds) {
@@ -87,7 +99,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     f.a = m.a;
     f.b = m.b;
     f.mu = m.friction;
-    f.firstNormal = static_cast<int>(rows.size());
+    f.firstNormal = static_cast<int>(next);
     f.normalCount = m.count;
     Vec3 normalSum = Vec3::Zero();
     const Share share(m.count);
@@ -99,11 +111,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       c.localA = p.localA;
       c.localB = p.localB;
       c.localN = p.localN;
-      c.row = static_cast<int>(rows.size());
+      c.row = static_cast<int>(next);
       c.restitution = m.restitution;
       contacts.push_back(c);
-      rows.emplace_back();
-      Row& r = rows.back();
+      Row& r = *take(1);
       formulateContact(c, A, B, h, slop_, r, false);
       r.lambda = settings.warmStart ? p.lambda : 0.0;
       // Apart at the step's start (C > 0, β < 0): a speculative point. Without speculative points
@@ -116,10 +127,9 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     }
     f.localN = normalSum.normalized();
     for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm());
-    f.row = static_cast<int>(rows.size());
+    f.row = static_cast<int>(next);
     f.qB = poses[static_cast<size_t>(m.b)].q;
-    for (int k = 0; k < 3; ++k) rows.emplace_back();  // (resize copies a default row: slower)
-    Row* fr = &rows[static_cast<size_t>(f.row)];
+    Row* fr = take(3);
     formulateFriction(f, A, B, fr, false);
     if (settings.warmStart) {
       // Last step's tangential impulse, a vector fixed in B, projected on this step's tangents:
@@ -175,27 +185,29 @@ void ConstraintSet::formulateJoint(const JointRef& ref, const std::vector<Pose>&
 
 namespace {
 
-// The inverse of the leading n x n block of a symmetric positive definite K (n <= 4) by
-// K = L D Lᵀ (L unit lower triangular), the rest of inv the identity; false if K is not positive
-// definite to working precision (a pivot Dᵢ <= 1e-14 Kᵢᵢ, Cholesky's test on Lᵢᵢ²). No square
-// roots and one division per pivot: Cholesky's chain of square roots and divisions was most of
-// a contact block's formulation.
-bool invertSpd(const Eigen::Matrix4d& K, int n, Eigen::Matrix4d& inv) {
-  double L[4][4] = {}, D[4] = {}, invD[4] = {};
+// The inverse of a symmetric positive definite n x n K (n <= 4, a template argument so that
+// the loops unroll) by K = L D Lᵀ (L unit lower triangular); false if K is not positive definite
+// to working precision (a pivot Dᵢ <= 1e-14 Kᵢᵢ, Cholesky's test on Lᵢᵢ²). No square roots and
+// one division per pivot: Cholesky's chain of square roots and divisions was most of a contact
+// block's formulation.
+template <int n>
+bool invertSpd(const double (&K)[4][4], double (&inv)[4][4]) {
+  // Not zero-filled (a rep stos each, a fifth of this function's time): every entry read is written first.
+  double L[4][4], D[4], invD[4];
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < i; ++j) {  // L[i][j] Dⱼ = Kᵢⱼ - Σₖ L[i][k] Dₖ L[j][k]
-      double s = K(i, j);
+      double s = K[i][j];
       for (int k = 0; k < j; ++k) s -= L[i][k] * D[k] * L[j][k];
       L[i][j] = s * invD[j];
     }
-    double d = K(i, i);
+    double d = K[i][i];
     for (int k = 0; k < i; ++k) d -= L[i][k] * D[k] * L[i][k];
-    if (!(d > 1e-14 * K(i, i))) return false;
+    if (!(d > 1e-14 * K[i][i])) return false;
     D[i] = d;
     invD[i] = 1 / d;
   }
   // L⁻¹ (unit lower triangular), then K⁻¹ = L⁻ᵀ D⁻¹ L⁻¹.
-  double M[4][4] = {};
+  double M[4][4];
   for (int i = 0; i < n; ++i) {
     M[i][i] = 1;
     for (int j = 0; j < i; ++j) {
@@ -204,14 +216,33 @@ bool invertSpd(const Eigen::Matrix4d& K, int n, Eigen::Matrix4d& inv) {
       M[i][j] = s;
     }
   }
-  inv.setIdentity();
   for (int i = 0; i < n; ++i)
     for (int j = 0; j <= i; ++j) {
       double s = 0;
       for (int k = i; k < n; ++k) s += M[k][i] * invD[k] * M[k][j];
-      inv(i, j) = inv(j, i) = s;
+      inv[i][j] = inv[j][i] = s;
     }
   return true;
+}
+
+// A block unit's K (the block of Γ = J̌ M̌⁻¹ J̌ᵀ, unscaled as the effective mass of single rows)
+// and its inverse (contact blocks: of K regularised), the rest of both the identity's.
+template <int n>
+void formBlock(const Row* b, const double (&unscale)[4], const BodyMass* mass, bool contact, BlockData& d) {
+  double K[4][4], inv[4][4];  // the leading n x n of each is written before it is read
+  for (int k = 0; k < n; ++k)
+    for (int i = 0; i <= k; ++i)  // symmetric
+      K[i][k] = K[k][i] = unscale[k] > 0 ? coupling(b[i], b[k]) * unscale[k] : gammaEntry(b[i], b[k], mass);
+  // Every entry written once (setZero and setIdentity first became a rep stos each, slow to start).
+  for (int k = 0; k < 4; ++k)
+    for (int i = 0; i < 4; ++i) d.K(i, k) = i < n && k < n ? K[i][k] : 0.0;
+  // Four coplanar points make K singular (rank 3): regularise slightly, so the full set's answer
+  // is the even, minimum-norm one.
+  if (contact)
+    for (int i = 0; i < n; ++i) K[i][i] *= 1 + 1e-4;
+  const bool ok = invertSpd<n>(K, inv);
+  for (int k = 0; k < 4; ++k)
+    for (int i = 0; i < 4; ++i) d.invK(i, k) = !ok ? 0.0 : i < n && k < n ? inv[i][k] : i == k ? 1.0 : 0.0;
 }
 
 }  // namespace
@@ -226,6 +257,7 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
   }
   // A block's rows share their two bodies (one joint part, one manifold), so its Γ entries are
   // J̌ᵢ · M̌⁻¹J̌ₖᵀ with the latter already in the rows (scaled by applyScale: undone here).
+  const double unscaleAll = applyScale > 0 ? 1 / applyScale : 0;
   for (SolveUnit& u : units) {
     if (u.kind == SolveUnit::Single || u.first < firstRow || u.first >= lastRow) continue;
     if (u.kind == SolveUnit::Friction) {
@@ -242,24 +274,15 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
       blocks.emplace_back();
     }
     BlockData& d = blocks[static_cast<size_t>(u.block)];
-    // K = block of Γ = J̌ M̌⁻¹ J̌ᵀ (unscaled, as the effective mass of single rows).
-    d.K.setZero();
     const Row* b = &rows[static_cast<size_t>(u.first)];
-    for (int k = 0; k < u.size; ++k) {
-      const double scale = b[k].velocityTarget && motorUnscaled_ ? 1.0 : applyScale;
-      const double unscale = scale > 0 ? 1 / scale : 0;
-      for (int i = 0; i <= k; ++i)  // symmetric
-        d.K(i, k) = d.K(k, i) =
-            scale > 0 ? coupling(b[i], b[k]) * unscale
-                      : gammaEntry(b[i], b[k], mass.data());
+    double unscale[4] = {};  // undoes each row's scale of M̌⁻¹J̌ᵀ; 0: from the masses
+    for (int k = 0; k < u.size; ++k) unscale[k] = b[k].velocityTarget && motorUnscaled_ ? 1.0 : unscaleAll;
+    const bool contact = u.kind == SolveUnit::Contact;
+    switch (u.size) {
+      case 2: formBlock<2>(b, unscale, mass.data(), contact, d); break;
+      case 3: formBlock<3>(b, unscale, mass.data(), contact, d); break;
+      default: formBlock<4>(b, unscale, mass.data(), contact, d); break;
     }
-    Eigen::Matrix4d K = d.K;
-    if (u.kind == SolveUnit::Contact) {
-      // Four coplanar points make K singular (rank 3): regularise slightly, so the full set's
-      // answer is the even, minimum-norm one.
-      for (int i = 0; i < u.size; ++i) K(i, i) *= 1 + 1e-4;
-    }
-    if (!invertSpd(K, u.size, d.invK)) d.invK.setZero();
   }
 }
 

@@ -45,6 +45,27 @@ struct Row {
   double lambda = 0;                                   // accumulated impulse [N s or N m s]
 };
 
+// r = Row{}, field by field (no zero-filled temporary). A new field must be reset here too.
+static_assert(sizeof(Row) == 208, "a field was added to Row: reset it in resetRow");
+inline void resetRow(Row& r) {
+  r.a = r.b = 0;
+  r.lin.setZero();
+  r.angA.setZero();
+  r.angB.setZero();
+  r.mAngA.setZero();
+  r.mAngB.setZero();
+  r.mA = r.mB = 0;
+  r.effMass = 0;
+  r.bias = 0;
+  r.lo = -kInfinity;
+  r.hi = kInfinity;
+  r.normalRow = -1;
+  r.normalCount = 0;
+  r.velocityLevel = r.velocityTarget = r.speculative = r.pushed = false;
+  r.split = 0;
+  r.lambda = 0;
+}
+
 // Rows solved together: the report's "block constraint x" of proc3:10. A single row with its
 // bounds; an unbounded 'stable' block (2 or 3 rows), solved by inverting its block of
 // Γ = J̌M̌⁻¹J̌ᵀ (IV.2.2 item 2); or a contact block, the normal rows of one manifold (up to 4),
@@ -61,8 +82,9 @@ struct SolveUnit {
 };
 
 struct BlockData {
-  Eigen::Matrix4d K = Eigen::Matrix4d::Zero();     // the block of Γ (unscaled M̌⁻¹)
-  Eigen::Matrix4d invK = Eigen::Matrix4d::Zero();  // its inverse (contact blocks: of K regularised)
+  // Not zero-initialised: ConstraintSet::finish writes both whole before any use.
+  Eigen::Matrix4d K;     // the block of Γ (unscaled M̌⁻¹)
+  Eigen::Matrix4d invK;  // its inverse (contact blocks: of K regularised)
   int lastMask = -1;  // contact blocks: the proper active set that fitted last (bit i: row i pushes)
 };
 

@@ -33,6 +33,7 @@ class HavokActualStepper final : public Stepper {
     const int n = c.n(), m = st.iterations;
     const double dt = c.h() / n, kappa = st.kappa, tau = st.tau;
     const double ratio = tau / kappa;
+    const double invKappa = 1 / kappa;  // a product a row instead of up to three divisions
     const size_t nb = c.bodies();
     const bool stableOnly = st.jacobians == JacobianRefresh::Stable && !cs.joints.empty();
     c.stats = StepStats{};
@@ -54,10 +55,10 @@ class HavokActualStepper final : public Stepper {
       if (exact) continue;
       r.bias *= ratio;
       if (r.normalRow < 0) {  // friction bounds are μ times the normal's λ̄ already
-        r.lo /= kappa;
-        r.hi /= kappa;
+        r.lo *= invKappa;
+        r.hi *= invKappa;
       }
-      r.lambda /= kappa;  // warm-started impulses, as λ̄
+      r.lambda *= invKappa;  // warm-started impulses, as λ̄
     }
     sumV_.assign(nb, Vec3::Zero());
     sumW_.assign(nb, Vec3::Zero());
@@ -79,7 +80,7 @@ class HavokActualStepper final : public Stepper {
         Row& r = cs.rows[f.row];
         const double shift = shifted ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;                // J̌šʲ
         const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
-        r.bias = (beta < 0 ? beta : tau * beta) / kappa + shift;
+        r.bias = (beta < 0 ? beta : tau * beta) * invKappa + shift;
       }
       for (int i = 0; i < m && !cs.rows.empty(); ++i) {
         if (stableOnly) predictStableRows(c);

@@ -72,12 +72,13 @@ bool solveSmall(double (&A)[4][4], double (&x)[4], int n) {
 // trying none pushing (nothing needs to), every point pushing (the precomputed inverse), then the
 // active set that fitted last time (it rarely changes from one sweep to the next), then every
 // smaller set by size.
-void solveContactBlock(const SolveUnit& u, BlockData& d, Row* rows, const double* b, double* delta) {
-  const int k = u.size;
+// k is the block's size, a template argument so that the common paths unroll.
+template <int k>
+void solveContactBlock(BlockData& d, const Row* rows, const double* b, double* delta) {
   double lam[4];
   bool idle = true;
   for (int i = 0; i < k; ++i) {
-    lam[i] = rows[u.first + i].lambda;
+    lam[i] = rows[i].lambda;
     idle = idle && lam[i] == 0 && b[i] <= 0;
   }
   // Nothing pushes and nothing wants to: the empty set fits (w = -b >= 0, Δ = 0). A third of the
@@ -146,6 +147,37 @@ inline void noteChange(double& change, double dl, double effMass) {
   if (effMass > 0 && std::abs(dl) > change * effMass) change = std::abs(dl) / effMass;
 }
 
+
+// A block unit of N rows on two bodies (velocities va.. read by the caller): b = cBias β - cVel J̌v̌
+// for each row, Δλ = K⁻¹ b (stable) or the block's MLCP (contact), applied row by row.
+template <int N>
+void solveBlockUnit(ConstraintSet& cs, const SolveUnit& u, Row* r, const SweepScales& k, Vec3& va, Vec3& wa, Vec3& vb,
+                    Vec3& wb, double& change) {
+  double b[N], dl[N];
+  for (int i = 0; i < N; ++i) {
+    const double cb =
+        r[i].velocityTarget ? k.biasTarget : (r[i].speculative && r[i].bias < 0 ? k.biasSpeculative : k.bias);
+    const double cv = r[i].velocityTarget ? k.velTarget : k.vel;
+    b[i] = cb * r[i].bias - cv * rowVelocity(r[i], va, wa, vb, wb);
+  }
+  BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
+  if (u.kind == SolveUnit::Stable) {
+    for (int i = 0; i < N; ++i) {
+      dl[i] = 0;
+      for (int j = 0; j < N; ++j) dl[i] += d.invK(i, j) * b[j];
+    }
+  } else {
+    solveContactBlock<N>(d, r, b, dl);
+  }
+  for (int i = 0; i < N; ++i) {
+    if (dl[i] == 0) continue;
+    r[i].lambda += dl[i];
+    r[i].pushed = r[i].pushed || r[i].lambda > 0;
+    applyImpulse(r[i], dl[i], va, wa, vb, wb);
+    noteChange(change, dl[i], r[i].effMass);
+  }
+}
+
 }  // namespace
 
 SweepScales SweepScales::havok(const SolverSettings& s) {
@@ -198,31 +230,12 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
       v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
       continue;
     }
-    // Blocks: b = cBias β - cVel J̌v̌ for each of their rows.
-    double b[4], dl[4];
-    for (int i = 0; i < u.size; ++i) {
-      const Row& r = rows[u.first + i];
-      const double cb = r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
-      const double cv = r.velocityTarget ? k.velTarget : k.vel;
-      b[i] = cb * r.bias - cv * rowVelocity(r, va, wa, vb, wb);
-    }
-    BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
-    if (u.kind == SolveUnit::Stable) {
-      // Unbounded: Δλ = K⁻¹ b.
-      for (int i = 0; i < u.size; ++i) {
-        dl[i] = 0;
-        for (int j = 0; j < u.size; ++j) dl[i] += d.invK(i, j) * b[j];
-      }
-    } else {
-      solveContactBlock(u, d, rows, b, dl);
-    }
-    for (int i = 0; i < u.size; ++i) {
-      Row& r = rows[u.first + i];
-      if (dl[i] == 0) continue;
-      r.lambda += dl[i];
-      r.pushed = r.pushed || r.lambda > 0;
-      applyImpulse(r, dl[i], va, wa, vb, wb);
-      noteChange(change, dl[i], r.effMass);
+    // Blocks: a joint's stable part (2 or 3 rows) or a manifold's normal rows (2 to 4).
+    Row* r = &rows[u.first];
+    switch (u.size) {
+      case 2: solveBlockUnit<2>(cs, u, r, k, va, wa, vb, wb, change); break;
+      case 3: solveBlockUnit<3>(cs, u, r, k, va, wa, vb, wb, change); break;
+      default: solveBlockUnit<4>(cs, u, r, k, va, wa, vb, wb, change); break;
     }
     v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
   }
