@@ -109,7 +109,8 @@ inline double normalImpulse(const Row& r, const Row* rows) {
 }
 
 // J̌ v̌ of a row for velocities v (world linear) and w (body-frame angular).
-inline double rowVelocity(const Row& r, const Vec3& vA, const Vec3& wA, const Vec3& vB, const Vec3& wB) {
+__attribute__((always_inline)) inline double rowVelocity(const Row& r, const Vec3& vA, const Vec3& wA, const Vec3& vB,
+                                                         const Vec3& wB) {
   return r.lin.dot(vA) + r.angA.dot(wA) - r.lin.dot(vB) + r.angB.dot(wB);
 }
 inline double rowVelocity(const Row& r, const Vec3* v, const Vec3* w) {
@@ -117,13 +118,17 @@ inline double rowVelocity(const Row& r, const Vec3* v, const Vec3* w) {
 }
 
 // v̌ += M̌⁻¹J̌ᵀ dλ.
-inline void applyImpulse(const Row& r, double dl, Vec3& vA, Vec3& wA, Vec3& vB, Vec3& wB) {
+// Always inlined: GCC kept it out of line in the sweep's loops, a call per row.
+__attribute__((always_inline)) inline void applyImpulse(const Row& r, double dl, Vec3& vA, Vec3& wA, Vec3& vB,
+                                                        Vec3& wB) {
   vA += dl * (r.mA * r.lin);
   wA += dl * r.mAngA;
   vB -= dl * (r.mB * r.lin);
   wB += dl * r.mAngB;
 }
-inline void applyImpulse(const Row& r, double dl, Vec3* v, Vec3* w) { applyImpulse(r, dl, v[r.a], w[r.a], v[r.b], w[r.b]); }
+__attribute__((always_inline)) inline void applyImpulse(const Row& r, double dl, Vec3* v, Vec3* w) {
+  applyImpulse(r, dl, v[r.a], w[r.a], v[r.b], w[r.b]);
+}
 
 // Fills M̌⁻¹J̌ᵀ (scaled by applyScale: the report's boxed κM̌⁻¹ in A5, else 1) and the effective
 // mass, which always uses the unscaled M̌⁻¹ (see docs/algorithms.md, A5 derivation).
