@@ -50,14 +50,14 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     jointLambda_.assign(static_cast<size_t>(total), 0.0);
   }
   // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
-  // is reset field by field: constructing them anew zero-filled each (a rep stos, slow to start)
-  // and was a tenth of formulating a pyramid.
+  // is reset field by field: constructing each anew zero-filled it first (a rep stos, slow to
+  // start), a tenth of formulating a pyramid.
   size_t total = jointLambda_.size();
   for (const Manifold& m : manifolds) total += static_cast<size_t>(m.count) + 3;
   rows.resize(total);
   size_t next = 0;
   auto take = [&](int n) {
-    Row* r = &rows[next];
+    Row* r = rows.data() + next;
     for (int k = 0; k < n; ++k) resetRow(r[k]);
     next += static_cast<size_t>(n);
     return r;
