@@ -334,32 +334,62 @@ TEST(Narrowphase, SpeculativePointsWithinTheMargin) {
   EXPECT_LT((sm.p[0].pB - Vec3(0.7, 0, 1.2)).norm(), 1e-9);
 }
 
+// Two unit boxes at poses A0, B0 and the manifold of one point between them, for the pair
+// cache's tests; moved() is a pose shifted and turned by up to `scale` at random.
+struct CachedPair {
+  const Pose A0{Vec3(0.1, 0.2, -0.3), Rq(Vec3(0.2, -0.1, 0.4))};
+  const Pose B0{Vec3(0.3, 1.1, -0.2), Rq(Vec3(-0.3, 0.2, 0.1))};
+  Manifold m;
+  uint64_t seed;
+  explicit CachedPair(uint64_t s) : seed(s) {
+    ManifoldCache cache;
+    cache.beginStep();
+    ContactPatch p;
+    p.add(ContactPoint{Vec3(0, 0.5, 0), Vec3(0, 0.5, 0), Vec3::UnitY(), 0});
+    cache.add(0, 1, A0, B0, 0.5, 0, p, box(0.5, 0.5, 0.5).boundingRadius());
+    m = cache.manifolds()[0];
+  }
+  double uniform() { return unitRandom(seed) * 2 - 1; }
+  Vec3 random(double scale) { return scale * Vec3(uniform(), uniform(), uniform()); }
+  Pose moved(const Pose& P, double scale) {
+    const Vec3 dp = random(scale);
+    return Pose{P.p + dp, P.q * Rq(random(scale))};
+  }
+};
+
 // The pair cache's bound: every point fixed on B within the manifold's reach moves, relative to
 // A, by no more than pairShift() says, whatever the two bodies did.
 TEST(Manifold, PairShiftBoundsTheMotionOfEveryPoint) {
-  ManifoldCache cache;
-  const Shape b = box(0.5, 0.5, 0.5);
-  const Pose A0{Vec3(0.1, 0.2, -0.3), Rq(Vec3(0.2, -0.1, 0.4))};
-  const Pose B0{Vec3(0.3, 1.1, -0.2), Rq(Vec3(-0.3, 0.2, 0.1))};
-  cache.beginStep();
-  ContactPatch p;
-  p.add(ContactPoint{Vec3(0, 0.5, 0), Vec3(0, 0.5, 0), Vec3::UnitY(), 0});
-  cache.add(0, 1, A0, B0, 0.5, 0, p, b.boundingRadius());
-  const Manifold& m = cache.manifolds()[0];
-  uint64_t seed = 7;
-  auto uniform = [&] { return unitRandom(seed) * 2 - 1; };
+  CachedPair pair(7);
+  const Pose &A0 = pair.A0, &B0 = pair.B0;
   for (int trial = 0; trial < 200; ++trial) {
     const double scale = trial < 100 ? 1e-3 : 0.3;  // small moves (the cache's range) and large ones
-    const Pose A{A0.p + scale * Vec3(uniform(), uniform(), uniform()), A0.q * Rq(scale * Vec3(uniform(), uniform(), uniform()))};
-    const Pose B{B0.p + scale * Vec3(uniform(), uniform(), uniform()), B0.q * Rq(scale * Vec3(uniform(), uniform(), uniform()))};
-    const double bound = pairShift(m, A, B);
+    const Pose A = pair.moved(A0, scale), B = pair.moved(B0, scale);
+    const double bound = pairShift(pair.m, A, B);
     for (int k = 0; k < 20; ++k) {
       // A point of B (inside its bounding sphere), seen from A, then and now.
-      const Vec3 x = 0.5 * Vec3(uniform(), uniform(), uniform());
+      const Vec3 x = pair.random(0.5);
       const Vec3 then = A0.unrotate(B0.apply(x) - A0.p), now = A.unrotate(B.apply(x) - A.p);
       EXPECT_LE((now - then).norm(), bound + 1e-12) << "trial " << trial;
     }
   }
+}
+
+// pairShiftBelow, the cache's test with tan for the angle first, decides as pairShift() < limit
+// does: on moves around the limit (both answers occur) and far beyond it.
+TEST(Manifold, PairShiftBelowDecidesAsPairShift) {
+  CachedPair pair(11);
+  int below = 0, trials = 0;
+  for (double scale : {2e-4, 5e-4, 1e-3, 0.5, 3.0}) {
+    for (int trial = 0; trial < 200; ++trial, ++trials) {
+      const Pose A = pair.moved(pair.A0, scale), B = pair.moved(pair.B0, scale);
+      const bool exact = pairShift(pair.m, A, B) < kPairCacheShift;
+      EXPECT_EQ(pairShiftBelow(pair.m, A, B, kPairCacheShift), exact) << "scale " << scale << " trial " << trial;
+      below += exact;
+    }
+  }
+  EXPECT_GT(below, 50);
+  EXPECT_LT(below, trials - 50);
 }
 
 // A box at rest keeps its manifold without a narrowphase query; one that moves more than the

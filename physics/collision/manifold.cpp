@@ -41,7 +41,7 @@ bool pairShiftBelow(const Manifold& m, const Pose& poseA, const Pose& poseB, dou
   const double lin = (relativePosition(poseA, poseB) - m.relP).norm();
   const double s = turn.vec().norm(), c = std::abs(turn.w());
   if (c > 0 && lin * c + 2 * s * m.reach < limit * c) return true;
-  return lin + 2 * std::atan2(s, c) * m.reach < limit;
+  return pairShift(m, poseA, poseB) < limit;
 }
 
 const Manifold* ManifoldCache::previous(int a, int b) {

@@ -147,6 +147,11 @@ inline void noteChange(double& change, double dl, double effMass) {
   if (effMass > 0 && std::abs(dl) > change * effMass) change = std::abs(dl) / effMass;
 }
 
+// The factors of a row's update Δλ = m_eff (cBias β - cVel J̌v̌) (SweepScales).
+inline double biasFactor(const Row& r, const SweepScales& k) {
+  return r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
+}
+inline double velFactor(const Row& r, const SweepScales& k) { return r.velocityTarget ? k.velTarget : k.vel; }
 
 // A block unit of N rows on two bodies (velocities va.. read by the caller): b = cBias β - cVel J̌v̌
 // for each row, Δλ = K⁻¹ b (stable) or the block's MLCP (contact), applied row by row.
@@ -154,12 +159,7 @@ template <int N>
 void solveBlockUnit(ConstraintSet& cs, const SolveUnit& u, Row* r, const SweepScales& k, Vec3& va, Vec3& wa, Vec3& vb,
                     Vec3& wb, double& change) {
   double b[N], dl[N];
-  for (int i = 0; i < N; ++i) {
-    const double cb =
-        r[i].velocityTarget ? k.biasTarget : (r[i].speculative && r[i].bias < 0 ? k.biasSpeculative : k.bias);
-    const double cv = r[i].velocityTarget ? k.velTarget : k.vel;
-    b[i] = cb * r[i].bias - cv * rowVelocity(r[i], va, wa, vb, wb);
-  }
+  for (int i = 0; i < N; ++i) b[i] = biasFactor(r[i], k) * r[i].bias - velFactor(r[i], k) * rowVelocity(r[i], va, wa, vb, wb);
   BlockData& d = cs.blocks[static_cast<size_t>(u.block)];
   if (u.kind == SolveUnit::Stable) {
     for (int i = 0; i < N; ++i) {
@@ -193,9 +193,7 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
   for (const SolveUnit& u : cs.units) {
     if (u.kind == SolveUnit::Single) {
       Row& r = rows[u.first];
-      const double cb = r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
-      const double cv = r.velocityTarget ? k.velTarget : k.vel;
-      const double target = cb * r.bias;
+      const double target = biasFactor(r, k) * r.bias, cv = velFactor(r, k);
       change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return r.effMass * (target - cv * jv); }));
       continue;
     }
@@ -214,10 +212,9 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, co
       for (int i = 0; i < 3; ++i) {
         if (i == 1) jv[1] += g.g10 * d[0];
         if (i == 2) jv[2] += g.g20 * d[0] + g.g21 * d[1];
-        const double cb = r[i].velocityTarget ? k.biasTarget : k.bias;
-        const double cv = r[i].velocityTarget ? k.velTarget : k.vel;
-        const double next =
-            std::clamp(r[i].lambda + r[i].effMass * (cb * r[i].bias - cv * jv[i]), r[i].lo * ln, r[i].hi * ln);
+        // (Friction rows are never speculative: biasFactor is k.bias or k.biasTarget, as before.)
+        const double next = std::clamp(r[i].lambda + r[i].effMass * (biasFactor(r[i], k) * r[i].bias - velFactor(r[i], k) * jv[i]),
+                                       r[i].lo * ln, r[i].hi * ln);
         d[i] = next - r[i].lambda;
         r[i].lambda = next;
         r[i].pushed = r[i].pushed || next > 0;
