@@ -44,6 +44,7 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
   ctx_.pseudoV.assign(nb, Vec3::Zero());
   ctx_.pseudoW.assign(nb, Vec3::Zero());
   reach_.assign(nb, 0.0);
+  move_.assign(nb, Vec3::Zero());
   approachV_.assign(nb, Vec3::Zero());
   ctx_.v.assign(nb, Vec3::Zero());
   ctx_.w.assign(nb, Vec3::Zero());
@@ -61,19 +62,20 @@ void World::setSettings(const SolverSettings& settings) {
 }
 
 bool World::geometry() {
-  // How far each body can get in this step, plus half the contact margin: a pair is examined
-  // when its bodies can meet, and speculative points cover the gap they can close.
-  // The step's fall under gravity, h² g, is added along gravity only (Broadphase): a resting
-  // box's neighbours a centimetre away are out of reach.
+  // Where each body can get in this step in free flight: x + t h v + c h² g with 0 <= c <= t <= 1
+  // under every algorithm (sub-steps included), inside the box of {0, h v, h v + h² g}; plus
+  // what turning moves a point, h |w| r, and half the contact margin on every side. A pair is
+  // examined when its bodies can meet, and speculative points cover the gap they can close.
   const double h = settings_.dt;
   const Vec3 fall = settings_.speculative ? Vec3(h * h * model_.gravity) : Vec3::Zero();
   for (size_t i = 0; i < state_.bodies.size(); ++i) {
     const Body& b = model_.bodies[i];
     const BodyState& s = state_.bodies[i];
-    reach_[i] = 0.5 * kContactMargin;
-    if (!b.isStatic && settings_.speculative) reach_[i] += h * (s.v.norm() + s.w.norm() * b.shape.boundingRadius());
+    const bool moves = !b.isStatic && settings_.speculative;
+    reach_[i] = 0.5 * kContactMargin + (moves ? h * s.w.norm() * b.shape.boundingRadius() : 0.0);
+    move_[i] = moves ? Vec3(h * s.v) : Vec3::Zero();
   }
-  broadphase_.update(state_, reach_, fall);
+  broadphase_.update(state_, reach_, move_, fall);
   const size_t cap = std::max<size_t>(limits::kMinPairCap, limits::kMaxPairsPerBody * model_.bodies.size());
   if (!broadphase_.findPairs(pairs_, cap)) {
     report_.finite = false;
@@ -103,8 +105,12 @@ bool World::geometry() {
       ++report_.cachedPairs;
       continue;
     }
-    narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB,
-                         reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)] + fall.norm(), patch);
+    // The gap the pair can close: relative motion, in which gravity cancels unless one is static
+    // (bodies falling side by side never meet, however fast they fall).
+    const double fallRel = A.isStatic == B.isStatic ? 0.0 : fall.norm();
+    const double gapLimit = reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)] +
+                            (move_[static_cast<size_t>(a)] - move_[static_cast<size_t>(b)]).norm() + fallRel;
+    narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB, gapLimit, patch);
     if (patch.count == 0) continue;
     // How far from its origin a point of B can be: B's size, or for a surface the distance of A's
     // far side from B's origin.

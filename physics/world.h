@@ -99,7 +99,8 @@ class World {
   std::unique_ptr<Stepper> stepper_;
   StepContext ctx_;
   std::vector<std::pair<int, int>> pairs_;
-  std::vector<double> reach_;  // per body: how far it can get this step, plus half the margin [m]
+  std::vector<double> reach_;  // per body: how far turning moves a point this step, plus half the margin [m]
+  std::vector<Vec3> move_;     // per body: h v, its free-flight move this step without gravity [m]
   std::vector<Vec3> approachV_;  // per body: the velocity restitution measures approach speeds with
   std::vector<Frame> frames_;    // per body: its pose with a rotation matrix, for the manifold cache
   StepReport report_;

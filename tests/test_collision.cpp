@@ -269,43 +269,54 @@ TEST(Broadphase, FindsOverlapsInOrderAndSkipsJointsAndStatics) {
   s.bodies[5].x = Vec3(0, 10, 0);
   Broadphase bp(m);
   const std::vector<double> still(m.bodies.size(), 0.0);
-  bp.update(s, still, Vec3::Zero());
+  std::vector<Vec3> move(m.bodies.size(), Vec3::Zero());
+  bp.update(s, still, move, Vec3::Zero());
   std::vector<std::pair<int, int>> pairs;
   EXPECT_TRUE(bp.findPairs(pairs, 100));
   const std::vector<std::pair<int, int>> expected = {{0, 2}, {0, 3}, {0, 4}, {1, 2}, {2, 3}};
   EXPECT_EQ(pairs, expected);
   // Moving a body updates the tree.
   s.bodies[5].x = Vec3(1.8, 1.4, 0);
-  bp.update(s, still, Vec3::Zero());
+  bp.update(s, still, move, Vec3::Zero());
   EXPECT_EQ(bp.movedLastUpdate(), 1);
   EXPECT_TRUE(bp.findPairs(pairs, 100));
   EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) != pairs.end());
   // Nothing moved: the tree is left alone and the pairs are the same.
   const std::vector<std::pair<int, int>> before = pairs;
-  bp.update(s, still, Vec3::Zero());
+  bp.update(s, still, move, Vec3::Zero());
   EXPECT_EQ(bp.movedLastUpdate(), 0);
   EXPECT_TRUE(bp.findPairs(pairs, 100));
   EXPECT_EQ(pairs, before);
   // A move inside the fat box keeps the body in place in the tree; its reach box still decides.
   s.bodies[5].x = Vec3(1.8, 1.4 + 1e-4, 0);
-  bp.update(s, still, Vec3::Zero());
+  bp.update(s, still, move, Vec3::Zero());
   EXPECT_EQ(bp.movedLastUpdate(), 0);
   // Moving away drops the candidate pair; the step's fall grows the reach box downward only.
   s.bodies[5].x = Vec3(1.8, 10, 0);
-  bp.update(s, still, Vec3::Zero());
+  bp.update(s, still, move, Vec3::Zero());
   EXPECT_TRUE(bp.findPairs(pairs, 100));
   EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) == pairs.end());
   s.bodies[5].x = Vec3(1.8, 1.52, 0);  // 2 cm above b's top (0.99), sphere radius 0.5
-  bp.update(s, still, Vec3::Zero());
+  bp.update(s, still, move, Vec3::Zero());
   EXPECT_TRUE(bp.findPairs(pairs, 100));
   EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) == pairs.end());
-  bp.update(s, still, Vec3(0, -0.05, 0));
+  bp.update(s, still, move, Vec3(0, -0.05, 0));
   EXPECT_TRUE(bp.findPairs(pairs, 100));
   EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) != pairs.end());
   s.bodies[5].x = Vec3(2.83, 0.49, 0);  // 3 cm to the side of c: the fall does not reach sideways
-  bp.update(s, still, Vec3(0, -0.05, 0));
+  bp.update(s, still, move, Vec3(0, -0.05, 0));
   EXPECT_TRUE(bp.findPairs(pairs, 100));
   EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) == pairs.end());
+  // The step's move sweeps the box along the velocity only: falling at 3 m/s (5 cm in a step) it
+  // still does not reach c 3 cm to its side; moving towards c at 3 m/s it does.
+  move[5] = Vec3(0, -0.05, 0);
+  bp.update(s, still, move, Vec3(0, -0.003, 0));
+  EXPECT_TRUE(bp.findPairs(pairs, 100));
+  EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) == pairs.end());
+  move[5] = Vec3(-0.05, 0, 0);
+  bp.update(s, still, move, Vec3(0, -0.003, 0));
+  EXPECT_TRUE(bp.findPairs(pairs, 100));
+  EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), std::make_pair(4, 5)) != pairs.end());
 }
 
 // Shapes apart by less than the margin get speculative points (depth < 0): FCL's distance query

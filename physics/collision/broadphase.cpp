@@ -79,6 +79,10 @@ Broadphase::Broadphase(const Model& model) : model_(model) {
   }
   reachBox_.resize(model.bodies.size());
   fat_.resize(model.bodies.size());
+  // At most every body moves in one update: reserved, so a step in which more move than ever
+  // before allocates nothing.
+  movedList_.reserve(model.bodies.size());
+  movedObjects_.reserve(model.bodies.size());
   for (const Joint& j : model.joints)
     if (!j.collide) excluded_.emplace_back(std::min(j.bodyA, j.bodyB), std::max(j.bodyA, j.bodyB));
   std::sort(excluded_.begin(), excluded_.end());
@@ -93,7 +97,8 @@ bool Broadphase::admitted(int i, int j) const {
   return !std::binary_search(excluded_.begin(), excluded_.end(), std::make_pair(i, j));
 }
 
-void Broadphase::update(const State& state, const std::vector<double>& reach, const Vec3& fall) {
+void Broadphase::update(const State& state, const std::vector<double>& reach, const std::vector<Vec3>& move,
+                        const Vec3& fall) {
   movedList_.clear();
   if (!registered_) {
     planes_.clear();
@@ -113,9 +118,10 @@ void Broadphase::update(const State& state, const std::vector<double>& reach, co
     tightBox(o, model_.bodies[i].shape, r.lo, r.hi);
     r.lo -= Vec3::Constant(reach[i]);
     r.hi += Vec3::Constant(reach[i]);
-    if (!model_.bodies[i].isStatic) {  // the fall, along gravity only
-      r.lo += fall.cwiseMin(Vec3::Zero());
-      r.hi += fall.cwiseMax(Vec3::Zero());
+    if (!model_.bodies[i].isStatic) {  // the free-flight path: inside the box of its three corners
+      const Vec3 end = move[i] + fall;
+      r.lo += move[i].cwiseMin(end).cwiseMin(Vec3::Zero());
+      r.hi += move[i].cwiseMax(end).cwiseMax(Vec3::Zero());
     }
     if (registered_ && fat_[i].contains(r)) {
       o.setBox(fat_[i].lo, fat_[i].hi);  // unchanged in the tree

@@ -1,8 +1,10 @@
 // s1, broadphase: which pairs of bodies are close enough for the narrowphase this step.
 //
-// Each body's reach box is its tight box grown by how far it can get in a step: `reach` on every
-// side and, along gravity only, the step's fall h²|g| (a resting box's neighbour 1 cm away is not
-// in reach; grown by h²|g| sideways too, every pyramid box met both neighbours). FCL's dynamic
+// Each body's reach box is its tight box grown by `reach` on every side (half the contact margin
+// and what its turning can move a point) and swept along the path free flight takes it in the
+// step: the box of {0, h v, h v + h² g} (a resting box's neighbour 1 cm away is not in reach;
+// grown by h²|g| sideways too, every pyramid box met both neighbours; grown by h|v| sideways, a
+// falling pile's columns met their neighbours, seven pairs a box). FCL's dynamic
 // AABB tree holds *fat* boxes, reach boxes grown by a margin, as Box2D and Bullet keep them: a
 // body is moved in the tree only when its reach box leaves its fat box, and only then is the
 // tree queried for its new neighbours. The pairs whose fat boxes overlap persist from step to
@@ -31,9 +33,10 @@ class Broadphase {
  public:
   explicit Broadphase(const Model& model);
   ~Broadphase();
-  // Moves every dynamic body's box to its state, grown by reach[i] on every side and by `fall`
-  // (the step's h² g) along gravity, and refits the tree where a box left its fat box.
-  void update(const State& state, const std::vector<double>& reach, const Vec3& fall);
+  // Moves every dynamic body's box to its state, grown by reach[i] on every side and swept by
+  // the box of {0, move[i], move[i] + fall} (move: h v, fall: the step's h² g), and refits the tree
+  // where a box left its fat box. Static bodies are not swept.
+  void update(const State& state, const std::vector<double>& reach, const std::vector<Vec3>& move, const Vec3& fall);
   // Pairs (i < j by body index) whose reach boxes overlap, in increasing order: the order is the
   // solve order downstream, so it does not depend on the tree. Returns false, with the pairs found
   // so far, when there are more than maxPairs (bodies started inside each other).

@@ -276,52 +276,66 @@ bool lemkeSolve(const DenseMLCP& p, std::vector<double>& x, Budget& budget) {
 // bounds: (Γλ - b)_i = 0; rows on them: λ_i = bound), removing the round-off a pivoting
 // sequence leaves. Redundant rows (four points under one box) make the system singular: the
 // minimum-norm solution is taken.
+// Which rows sit on a bound is read from λ itself (within 1e-9 of it) first. When that leaves
+// the residual above kDirectTolerance (a Gauss-Seidel answer to 5e-9, with rows whose λ is tiny
+// but not on the bound), it is read from the projected Gauss-Seidel step instead, the natural
+// map of semismooth Newton methods: row i is on a bound when λ_i - (Γλ - b)_i / Γ_ii is beyond it.
 void polish(const DenseMLCP& p, std::vector<double>& x, Budget& budget) {
   const int n = p.n;
   Eigen::MatrixXd S(n, n);
   Eigen::VectorXd r(n);
   double best = mlcpResidual(p, x);
-  // A corrected λ can move a row across a bound: classify again from the better answer.
   const double perRound = 4.0 / 3.0 * std::pow(static_cast<double>(n), 3) + 2.0 * n * n;
-  for (int round = 0; round < 4 && best > 0 && budget.afford(perRound); ++round) {
-    budget.spend(perRound);
-    S.setZero();
-    r.setZero();
-    double scale = 0;
-    for (double v : x) scale = std::max(scale, std::abs(v));
-    const double tol = 1e-9 * (1 + scale);
-    for (int i = 0; i < n; ++i) {
-      const size_t s = static_cast<size_t>(i);
-      double lo, hi;
-      bounds(p, x, i, lo, hi);
-      const double xi = x[s];
-      const int f = p.findex[s];
-      if (xi <= lo + tol && !std::isinf(lo)) {
-        S(i, i) = 1;  // λ = -μΣλn or lo
-        if (f >= 0)
-          for (int k = 0; k < p.fcount[s]; ++k) S(i, f + k) = std::abs(p.hi[s]);
-        else
-          r[i] = lo;
-      } else if (xi >= hi - tol && !std::isinf(hi)) {
-        S(i, i) = 1;  // λ = μΣλn or hi
-        if (f >= 0)
-          for (int k = 0; k < p.fcount[s]; ++k) S(i, f + k) = -std::abs(p.hi[s]);
-        else
-          r[i] = hi;
-      } else {
-        for (int k = 0; k < n; ++k) S(i, k) = p.A[static_cast<size_t>(i * n + k)];
-        r[i] = p.b[s];
+  // A corrected λ can move a row across a bound: classify again from the better answer.
+  auto rounds = [&](bool naturalMap) {
+    for (int round = 0; round < 4 && best > 0 && budget.afford(perRound); ++round) {
+      budget.spend(perRound);
+      S.setZero();
+      r.setZero();
+      double scale = 0;
+      for (double v : x) scale = std::max(scale, std::abs(v));
+      const double tol = naturalMap ? 0.0 : 1e-9 * (1 + scale);
+      for (int i = 0; i < n; ++i) {
+        const size_t s = static_cast<size_t>(i);
+        double lo, hi;
+        bounds(p, x, i, lo, hi);
+        double xi = x[s];
+        const double d = p.A[static_cast<size_t>(i * n + i)];
+        if (naturalMap && d > 0) {
+          double wi = -p.b[s];
+          for (int k = 0; k < n; ++k) wi += p.A[static_cast<size_t>(i * n + k)] * x[static_cast<size_t>(k)];
+          xi -= wi / d;
+        }
+        const int f = p.findex[s];
+        if (xi <= lo + tol && !std::isinf(lo)) {
+          S(i, i) = 1;  // λ = -μΣλn or lo
+          if (f >= 0)
+            for (int k = 0; k < p.fcount[s]; ++k) S(i, f + k) = std::abs(p.hi[s]);
+          else
+            r[i] = lo;
+        } else if (xi >= hi - tol && !std::isinf(hi)) {
+          S(i, i) = 1;  // λ = μΣλn or hi
+          if (f >= 0)
+            for (int k = 0; k < p.fcount[s]; ++k) S(i, f + k) = -std::abs(p.hi[s]);
+          else
+            r[i] = hi;
+        } else {
+          for (int k = 0; k < n; ++k) S(i, k) = p.A[static_cast<size_t>(i * n + k)];
+          r[i] = p.b[s];
+        }
       }
+      const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(S);
+      Eigen::VectorXd y = cod.solve(r);
+      y += cod.solve(r - S * y);  // one step of iterative refinement
+      std::vector<double> cand(y.data(), y.data() + n);
+      const double res = mlcpResidual(p, cand);
+      if (!(res < best)) break;
+      best = res;
+      x = cand;
     }
-    const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(S);
-    Eigen::VectorXd y = cod.solve(r);
-    y += cod.solve(r - S * y);  // one step of iterative refinement
-    std::vector<double> cand(y.data(), y.data() + n);
-    const double res = mlcpResidual(p, cand);
-    if (!(res < best)) break;
-    best = res;
-    x = cand;
-  }
+  };
+  rounds(false);
+  if (best > kDirectTolerance) rounds(true);
 }
 
 // Projected Gauss-Seidel on the dense problem, from x: the last resort when both pivoting
