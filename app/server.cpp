@@ -166,6 +166,7 @@ json settingsJson(const SolverSettings& s) {
           {"friction_exempt", s.frictionExempt},
           {"speculative", s.speculative},
           {"restitution", s.restitution},
+          {"islands", s.islands},
           {"restitution_threshold", s.restitutionThreshold},
           {"jacobians", s.jacobians == JacobianRefresh::Joints ? "joints" : "stable"},
           {"gyroscopic", s.gyroscopic == Gyroscopic::None       ? "none"

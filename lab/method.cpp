@@ -56,6 +56,7 @@ std::vector<SettingValue> settingValues(const Method& m, const SolverSettings& s
   o.frictionExempt = s.frictionExempt;
   o.speculative = s.speculative;
   o.restitution = s.restitution;
+  o.islands = s.islands;
   o.restitutionThreshold = s.restitutionThreshold;
   o.jacobians = s.jacobians == JacobianRefresh::Stable ? "stable" : "joints";
   o.gyroscopic = s.gyroscopic == Gyroscopic::Implicit ? "implicit" : s.gyroscopic == Gyroscopic::Explicit ? "explicit" : "none";

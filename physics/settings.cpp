@@ -132,6 +132,10 @@ std::vector<SettingSpec> makeTable() {
       {"restitution", "", "restitution", K::Flag, {0, 0}, {},
        "Apply the bodies' restitution after the velocity solve (an extension, on; the report has none)",
        &O::restitution},
+      {"islands", "", "islands", K::Flag, {0, 0}, {},
+       "a5: solve each island (bodies joined by contacts and joints) through all its sub-steps before the next, "
+       "while its rows are in cache; the same numbers as all at once (on)",
+       &O::islands},
       {"restitution_threshold", "", "restitution-threshold", K::Real, {0, 100}, {},
        "Approach speed below which contacts do not bounce [m/s] (default 1)", &O::restitutionThreshold},
       {"jacobians", "", "jacobians", K::Choice, {0, 0}, {"joints", "stable"},
@@ -508,6 +512,7 @@ SolverSettings resolve(const SolverOverrides& o) {
   if (o.frictionExempt) s.frictionExempt = *o.frictionExempt;
   if (o.speculative) s.speculative = *o.speculative;
   if (o.restitution) s.restitution = *o.restitution;
+  if (o.islands) s.islands = *o.islands;
   if (o.restitutionThreshold) s.restitutionThreshold = *o.restitutionThreshold;
   if (o.jacobians) s.jacobians = *o.jacobians == "stable" ? JacobianRefresh::Stable : JacobianRefresh::Joints;
   if (o.gyroscopic)

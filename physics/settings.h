@@ -55,6 +55,7 @@ struct SolverSettings {
   bool frictionExempt = true;    // friction rows keep β = 0 under A4/A5's bias update (off: updated)
   bool speculative = true;       // points within a margin before touching, closing at full speed
   bool restitution = true;       // bodies' restitution applied after the velocity solve
+  bool islands = true;           // a5: solve island by island (the same numbers as all at once)
   double restitutionThreshold = 1.0;  // approach speeds below this do not bounce [m/s]
   JacobianRefresh jacobians = JacobianRefresh::Joints;  // A5 (IV.4.1)
   Gyroscopic gyroscopic = Gyroscopic::None;             // the report's: none
@@ -76,7 +77,7 @@ struct SolverOverrides {
   std::optional<int> iterations;
   std::optional<double> omega, tolerance, kappa, tau, slop;
   std::optional<bool> warmStart, blockSolve, splitImpulse, contactBlocks;
-  std::optional<bool> motorUnscaled, frictionExempt, speculative, restitution;
+  std::optional<bool> motorUnscaled, frictionExempt, speculative, restitution, islands;
   std::optional<double> restitutionThreshold;
   std::optional<std::string> jacobians;  // "joints" or "stable"
   std::optional<std::string> gyroscopic;  // "none", "explicit", "implicit"

@@ -75,9 +75,9 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     for (int i = 0; i < ref.count; ++i)
       rows[static_cast<size_t>(ref.first + i)].lambda =
           settings.warmStart ? jointLambda_[static_cast<size_t>(jointLambdaFirst_[k] + i)] : 0.0;
-    joints.push_back(ref);
     // A stable part is one block when block solving, else one unit per row; bounded rows
     // (limits, motors) are always on their own.
+    ref.firstUnit = static_cast<int>(units.size());
     for (int p = 0; p < layout.parts; ++p) {
       const JointPart& part = layout.part[p];
       if (part.stable && stableBlocks_ && part.size > 1) {
@@ -86,6 +86,8 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
         for (int i = 0; i < part.size; ++i) units.push_back(SolveUnit{ref.first + part.offset + i, 1});
       }
     }
+    ref.units = static_cast<int>(units.size()) - ref.firstUnit;
+    joints.push_back(ref);
   }
 
   // Per manifold: its points' normal rows, then its three friction rows.
@@ -151,6 +153,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // rocks itself apart (docs/algorithms.md).
   auto normalUnits = [&] {
     for (FrictionDef& f : frictions) {
+      f.firstNormalUnit = static_cast<int>(units.size());
       if (contactBlocks_ && f.normalCount > 1) {
         f.unit = static_cast<int>(units.size());
         units.push_back(SolveUnit{f.firstNormal, f.normalCount, SolveUnit::Contact, -1});
@@ -160,8 +163,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     }
   };
   auto frictionUnits = [&] {
-    for (const FrictionDef& f : frictions)
+    for (FrictionDef& f : frictions) {
+      f.frictionUnit = static_cast<int>(units.size());
       units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction, -1});
+    }
   };
   if (settings.warmStart) {
     frictionUnits();
@@ -175,6 +180,130 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   for (size_t k = 0; k < frictions.size(); ++k)
     if (frictions[k].unit >= 0)
       blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)].lastMask = manifolds[k].blockMask;
+  findIslands(settings.islands, settings.warmStart);
+}
+
+void ConstraintSet::findIslands(bool split, bool frictionFirst) {
+  // Only the bodies of manifolds and joints are read, never the rows: reading every row again
+  // made this a tenth of a 10 000-box step.
+  const std::vector<Body>& bodies = model_->bodies;
+  const int nb = static_cast<int>(bodies.size());
+  auto dynamic = [&](int i) { return !bodies[static_cast<size_t>(i)].isStatic; };
+  auto jointBodies = [&](const JointRef& ref) -> const Joint& { return model_->joints[static_cast<size_t>(ref.joint)]; };
+  parent_.resize(static_cast<size_t>(nb));
+  for (int i = 0; i < nb; ++i) parent_[static_cast<size_t>(i)] = i;
+  auto root = [&](int i) {  // with path halving
+    while (parent_[static_cast<size_t>(i)] != i)
+      i = parent_[static_cast<size_t>(i)] = parent_[static_cast<size_t>(parent_[static_cast<size_t>(i)])];
+    return i;
+  };
+  auto unite = [&](int a, int b) {
+    if (!dynamic(a) || !dynamic(b)) return;
+    a = root(a), b = root(b);
+    if (a != b) parent_[static_cast<size_t>(std::max(a, b))] = std::min(a, b);  // the lowest body is the root
+  };
+  if (split) {
+    for (const FrictionDef& f : frictions) unite(f.a, f.b);
+    for (const JointRef& ref : joints) unite(jointBodies(ref).bodyA, jointBodies(ref).bodyB);
+  }
+  // Islands numbered in order of their lowest body.
+  islandOf_.assign(static_cast<size_t>(nb), -1);
+  int count = 0;
+  for (int i = 0; i < nb; ++i) {
+    if (!dynamic(i)) continue;
+    int& id = islandOf_[static_cast<size_t>(split ? root(i) : 0)];
+    if (id < 0) id = count++;
+    islandOf_[static_cast<size_t>(i)] = id;
+  }
+  count = std::max(count, 1);  // nothing dynamic: one empty island
+  auto of = [&](int a, int b) { return std::max(0, islandOf_[static_cast<size_t>(dynamic(a) ? a : b)]); };
+  // Bodies, joints and manifolds by counting sort, which keeps the step's order within an island:
+  // islands_[k] is where island k's entries start, islands_[count] the end of all.
+  islands_.assign(static_cast<size_t>(count) + 1, Island{});
+  for (int i = 0; i < nb; ++i)
+    if (dynamic(i)) ++islands_[static_cast<size_t>(islandOf_[static_cast<size_t>(i)]) + 1].bodies;
+  for (const JointRef& ref : joints) ++islands_[static_cast<size_t>(of(jointBodies(ref).bodyA, jointBodies(ref).bodyB)) + 1].joints;
+  for (const FrictionDef& f : frictions) ++islands_[static_cast<size_t>(of(f.a, f.b)) + 1].manifolds;
+  for (size_t k = 1; k < islands_.size(); ++k) {
+    islands_[k].bodies += islands_[k - 1].bodies;
+    islands_[k].joints += islands_[k - 1].joints;
+    islands_[k].manifolds += islands_[k - 1].manifolds;
+  }
+  cursor_.assign(islands_.begin(), islands_.end());
+  islandBodies_.resize(static_cast<size_t>(islands_.back().bodies));
+  islandJoints_.resize(joints.size());
+  islandManifolds_.resize(frictions.size());
+  for (int i = 0; i < nb; ++i)
+    if (dynamic(i)) islandBodies_[static_cast<size_t>(cursor_[static_cast<size_t>(islandOf_[static_cast<size_t>(i)])].bodies++)] = i;
+  for (int k = 0; k < static_cast<int>(joints.size()); ++k) {
+    const Joint& j = jointBodies(joints[static_cast<size_t>(k)]);
+    islandJoints_[static_cast<size_t>(cursor_[static_cast<size_t>(of(j.bodyA, j.bodyB))].joints++)] = k;
+  }
+  for (int k = 0; k < static_cast<int>(frictions.size()); ++k) {
+    const FrictionDef& f = frictions[static_cast<size_t>(k)];
+    islandManifolds_[static_cast<size_t>(cursor_[static_cast<size_t>(of(f.a, f.b))].manifolds++)] = k;
+  }
+  // Units and rows island by island, each in the step's order: joints' first, then the
+  // manifolds' friction and normal units in the order build() put them; rows are joints' then
+  // manifolds' (normal rows, then friction), as build() laid them out.
+  islandUnits_.resize(units.size());
+  islandRows_.resize(rows.size());
+  int nu = 0, nr = 0;
+  for (int k = 0; k < count; ++k) {
+    Island& is = islands_[static_cast<size_t>(k)];
+    const Island& next = islands_[static_cast<size_t>(k) + 1];
+    is.units = nu;
+    is.rows = nr;
+    for (int q = is.joints; q < next.joints; ++q) {
+      const JointRef& ref = joints[static_cast<size_t>(islandJoints_[static_cast<size_t>(q)])];
+      for (int u = 0; u < ref.units; ++u) islandUnits_[static_cast<size_t>(nu++)] = ref.firstUnit + u;
+      for (int r = 0; r < ref.count; ++r) islandRows_[static_cast<size_t>(nr++)] = ref.first + r;
+    }
+    for (int pass = 0; pass < 2; ++pass) {
+      const bool frictionPass = (pass == 0) == frictionFirst;
+      for (int q = is.manifolds; q < next.manifolds; ++q) {
+        const FrictionDef& f = frictions[static_cast<size_t>(islandManifolds_[static_cast<size_t>(q)])];
+        if (frictionPass) {
+          islandUnits_[static_cast<size_t>(nu++)] = f.frictionUnit;
+          continue;
+        }
+        const int n = f.unit >= 0 ? 1 : f.normalCount;
+        for (int u = 0; u < n; ++u) islandUnits_[static_cast<size_t>(nu++)] = f.firstNormalUnit + u;
+      }
+    }
+    for (int q = is.manifolds; q < next.manifolds; ++q) {
+      const FrictionDef& f = frictions[static_cast<size_t>(islandManifolds_[static_cast<size_t>(q)])];
+      for (int r = f.firstNormal; r < f.row + 3; ++r) islandRows_[static_cast<size_t>(nr++)] = r;
+    }
+  }
+  islands_.back().units = nu;
+  islands_.back().rows = nr;
+}
+
+ConstraintPart ConstraintSet::island(int k) const {
+  const Island& a = islands_[static_cast<size_t>(k)];
+  const Island& b = islands_[static_cast<size_t>(k) + 1];
+  return {{islandUnits_.data() + a.units, 0, b.units - a.units},
+          {islandRows_.data() + a.rows, 0, b.rows - a.rows},
+          {islandBodies_.data() + a.bodies, 0, b.bodies - a.bodies},
+          {islandJoints_.data() + a.joints, 0, b.joints - a.joints}};
+}
+
+ConstraintPart ConstraintSet::whole(size_t bodies) const {
+  return {{nullptr, 0, static_cast<int>(units.size())},
+          {nullptr, 0, static_cast<int>(rows.size())},
+          {nullptr, 0, static_cast<int>(bodies)},
+          {nullptr, 0, static_cast<int>(joints.size())}};
+}
+
+void ConstraintSet::reformulateJoints(const IndexRange& list, const std::vector<Pose>& poses,
+                                      const std::vector<BodyMass>& mass, double h, double applyScale) {
+  for (int k = 0; k < list.count; ++k) {
+    const JointRef& ref = joints[static_cast<size_t>(list[k])];
+    formulateJoint(ref, poses, h, true);
+    finishRows(ref.first, ref.first + ref.count, mass, applyScale);
+    for (int u = ref.firstUnit; u < ref.firstUnit + ref.units; ++u) finishUnit(units[static_cast<size_t>(u)], mass, applyScale);
+  }
 }
 
 void ConstraintSet::formulateJoint(const JointRef& ref, const std::vector<Pose>& poses, double h, bool jacobianOnly) {
@@ -248,6 +377,12 @@ void formBlock(const Row* b, const double (&unscale)[4], const BodyMass* mass, b
 }  // namespace
 
 void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale) {
+  finishRows(firstRow, lastRow, mass, applyScale);
+  for (SolveUnit& u : units)
+    if (u.first >= firstRow && u.first < lastRow) finishUnit(u, mass, applyScale);
+}
+
+void ConstraintSet::finishRows(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale) {
   for (int i = firstRow; i < lastRow; ++i) {
     Row& r = rows[static_cast<size_t>(i)];
     // A motor is solved exactly under every algorithm: κ does not scale it (docs/algorithms.md),
@@ -255,41 +390,45 @@ void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass
     finishRow(r, mass[static_cast<size_t>(r.a)], mass[static_cast<size_t>(r.b)],
               r.velocityTarget && motorUnscaled_ ? 1.0 : applyScale);
   }
+}
+
+void ConstraintSet::finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale) {
+  if (u.kind == SolveUnit::Single) return;
+  if (u.kind == SolveUnit::Friction) {
+    if (u.block < 0) {
+      u.block = static_cast<int>(couplings.size());
+      couplings.emplace_back();
+    }
+    const Row* r = &rows[static_cast<size_t>(u.first)];
+    couplings[static_cast<size_t>(u.block)] = {coupling(r[1], r[0]), coupling(r[2], r[0]), coupling(r[2], r[1])};
+    return;
+  }
   // A block's rows share their two bodies (one joint part, one manifold), so its Γ entries are
   // J̌ᵢ · M̌⁻¹J̌ₖᵀ with the latter already in the rows (scaled by applyScale: undone here).
+  if (u.block < 0) {
+    u.block = static_cast<int>(blocks.size());
+    blocks.emplace_back();
+  }
+  BlockData& d = blocks[static_cast<size_t>(u.block)];
+  const Row* b = &rows[static_cast<size_t>(u.first)];
   const double unscaleAll = applyScale > 0 ? 1 / applyScale : 0;
-  for (SolveUnit& u : units) {
-    if (u.kind == SolveUnit::Single || u.first < firstRow || u.first >= lastRow) continue;
-    if (u.kind == SolveUnit::Friction) {
-      if (u.block < 0) {
-        u.block = static_cast<int>(couplings.size());
-        couplings.emplace_back();
-      }
-      const Row* r = &rows[static_cast<size_t>(u.first)];
-      couplings[static_cast<size_t>(u.block)] = {coupling(r[1], r[0]), coupling(r[2], r[0]), coupling(r[2], r[1])};
-      continue;
-    }
-    if (u.block < 0) {
-      u.block = static_cast<int>(blocks.size());
-      blocks.emplace_back();
-    }
-    BlockData& d = blocks[static_cast<size_t>(u.block)];
-    const Row* b = &rows[static_cast<size_t>(u.first)];
-    double unscale[4] = {};  // undoes each row's scale of M̌⁻¹J̌ᵀ; 0: from the masses
-    for (int k = 0; k < u.size; ++k) unscale[k] = b[k].velocityTarget && motorUnscaled_ ? 1.0 : unscaleAll;
-    const bool contact = u.kind == SolveUnit::Contact;
-    switch (u.size) {
-      case 2: formBlock<2>(b, unscale, mass.data(), contact, d); break;
-      case 3: formBlock<3>(b, unscale, mass.data(), contact, d); break;
-      default: formBlock<4>(b, unscale, mass.data(), contact, d); break;
-    }
+  double unscale[4] = {};  // undoes each row's scale of M̌⁻¹J̌ᵀ; 0: from the masses
+  for (int k = 0; k < u.size; ++k) unscale[k] = b[k].velocityTarget && motorUnscaled_ ? 1.0 : unscaleAll;
+  const bool contact = u.kind == SolveUnit::Contact;
+  switch (u.size) {
+    case 2: formBlock<2>(b, unscale, mass.data(), contact, d); break;
+    case 3: formBlock<3>(b, unscale, mass.data(), contact, d); break;
+    default: formBlock<4>(b, unscale, mass.data(), contact, d); break;
   }
 }
 
 void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h,
                                 Refresh what, double applyScale) {
-  const bool jacobianOnly = what == Refresh::JointJacobians;  // Joints: β too
-  for (const JointRef& ref : joints) formulateJoint(ref, poses, h, jacobianOnly);
+  if (what == Refresh::JointJacobians) {
+    reformulateJoints(IndexRange{nullptr, 0, static_cast<int>(joints.size())}, poses, mass, h, applyScale);
+    return;
+  }
+  for (const JointRef& ref : joints) formulateJoint(ref, poses, h, false);  // β too
   if (what == Refresh::All) {
     frames_.assign(poses.begin(), poses.end());
     for (const ContactDef& c : contacts) {

@@ -12,12 +12,26 @@
 
 namespace substep {
 
+// A run of indices: listed (idx), or consecutive from `first` when idx is null.
+struct IndexRange {
+  const int* idx = nullptr;
+  int first = 0, count = 0;
+  int operator[](int k) const { return idx ? idx[k] : first + k; }
+};
+
+// What a stepper can solve on its own, without reading or writing anything else: the solve units
+// (in solve order), rows (in row order), bodies and joints of one island, or of the whole step.
+struct ConstraintPart {
+  IndexRange units, rows, bodies, joints;
+};
+
 class ConstraintSet {
  public:
   struct JointRef {
     int joint = 0;    // index in Model::joints
     int first = 0;    // its first row
     int count = 0;    // its rows this step (limits and motors may add or drop rows)
+    int firstUnit = 0, units = 0;  // its solve units
   };
 
   // What a sub-step re-formulation recomputes.
@@ -34,6 +48,10 @@ class ConstraintSet {
              const std::vector<BodyMass>& mass, const SolverSettings& settings, double h, double applyScale);
   void reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h, Refresh what,
                    double applyScale);
+  // J̌ of the listed joints (JointRef indices) at `poses`, with their M̌⁻¹J̌ᵀ, effective masses and
+  // blocks: Refresh::JointJacobians for one part of the step.
+  void reformulateJoints(const IndexRange& joints, const std::vector<Pose>& poses, const std::vector<BodyMass>& mass,
+                         double h, double applyScale);
   // Recomputes M̌⁻¹J̌ᵀ, the effective masses and the blocks of the joint rows after their J̌
   // changed (A5's stable-row prediction).
   void refinishJoints(const std::vector<BodyMass>& mass, double applyScale) { finish(0, contactFirstRow, mass, applyScale); }
@@ -51,6 +69,14 @@ class ConstraintSet {
   std::vector<JointRef> joints;
   int contactFirstRow = 0;             // rows from here on are contacts and friction
 
+  // Islands: bodies that constraints join, directly or through other bodies (a static body joins
+  // nothing), found by union-find over the units in build(). Dynamic bodies that touch nothing
+  // are islands of their own. Numbered by their lowest body; each one's units, rows, bodies and
+  // joints keep the step's order. With SolverSettings::islands off, one island holds everything.
+  int islandCount() const { return static_cast<int>(islands_.size()) - 1; }
+  ConstraintPart island(int k) const;
+  ConstraintPart whole(size_t bodies) const;  // every unit, row, body (static ones too) and joint
+
   // Largest penetration of any contact point and largest joint error at `poses` [m].
   double maxPenetration(const std::vector<Pose>& poses) const;
   double maxJointError(const std::vector<Pose>& poses) const;
@@ -58,6 +84,8 @@ class ConstraintSet {
  private:
   void formulateJoint(const JointRef& ref, const std::vector<Pose>& poses, double h, bool jacobianOnly);
   void finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale);
+  void finishRows(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale);
+  void finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale);  // its block or couplings
 
   const Model* model_ = nullptr;
   double slop_ = 0;
@@ -65,6 +93,14 @@ class ConstraintSet {
   std::vector<double> jointLambda_;  // per joint row, last step's impulses
   std::vector<int> jointLambdaFirst_;
   std::vector<Frame> frames_;  // the poses contacts are formulated at, as rotation matrices
+
+  void findIslands(bool split, bool frictionFirst);  // frictionFirst: the unit order build() chose
+  struct Island {
+    int units = 0, rows = 0, bodies = 0, joints = 0, manifolds = 0;  // where each of its lists starts
+  };
+  std::vector<Island> islands_, cursor_;  // islands_: and one past the last, for the ends
+  std::vector<int> islandUnits_, islandRows_, islandBodies_, islandJoints_, islandManifolds_;
+  std::vector<int> parent_, islandOf_;  // union-find over bodies; then each root's island
 };
 
 }  // namespace substep

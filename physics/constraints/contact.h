@@ -42,6 +42,7 @@ struct FrictionDef {
   int row = 0;                 // its three rows: t1, t2, twist
   int firstNormal = 0, normalCount = 0;  // the manifold's normal rows (contiguous)
   int unit = -1;               // their contact block's SolveUnit, if they are one
+  int firstNormalUnit = 0, frictionUnit = 0;  // the SolveUnits of its normal rows (1 or normalCount), of its friction
   Quat qB = Quat::Identity();  // B's orientation when formulated: warm-start impulses are kept in B's frame
 };
 

@@ -30,10 +30,8 @@ class HavokActualStepper final : public Stepper {
   void stepVelocities(StepContext& c) override {
     ConstraintSet& cs = *c.constraints;
     const SolverSettings& st = *c.settings;
-    const int n = c.n(), m = st.iterations;
-    const double dt = c.h() / n, kappa = st.kappa, tau = st.tau;
-    const double ratio = tau / kappa;
-    const double invKappa = 1 / kappa;  // a product a row instead of up to three divisions
+    const int n = c.n();
+    const double dt = c.h() / n, kappa = st.kappa;
     const size_t nb = c.bodies();
     const bool stableOnly = st.jacobians == JacobianRefresh::Stable && !cs.joints.empty();
     c.stats = StepStats{};
@@ -41,11 +39,45 @@ class HavokActualStepper final : public Stepper {
     c.rowsHeld = cs.joints.empty();  // only joint rows are re-formulated between sub-steps
 
     splitPositionErrors(c);
+    sumV_.assign(nb, Vec3::Zero());
+    sumW_.assign(nb, Vec3::Zero());
+    rawV_.assign(nb, Vec3::Zero());
+    rawW_.assign(nb, Vec3::Zero());
+    beginSubSteps(c);
+    if (stableOnly) collectStableRows(c);
+    addExternal(c, dt);  // ŵ¹ = v̌⁰ + ext (š¹ = 0)
+    // Islands share no body and no row, so each can go through all n sub-steps on its own, its
+    // rows in cache: the same arithmetic in the same order within each island, so the same
+    // numbers as all at once. The stable-row prediction works on every body at once: one part.
+    if (stableOnly) {
+      solvePart(c, cs.whole(nb), stableOnly);
+    } else {
+      for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly);
+    }
+    c.stats.iterations = n * st.iterations;
+    const size_t last = static_cast<size_t>(n - 1) * nb;
+    applyRestitution(c, &c.subV[last], &c.subW[last], kappa);
+    solvePositionErrors(c, n * st.iterations, kappa);  // rows apply κM̌⁻¹J̌ᵀ; the split is of β, not β̄
+  }
+
+  void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
+
+ private:
+  // Sub-steps 1..n of one part of the step (an island, or all of it).
+  void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly) {
+    ConstraintSet& cs = *c.constraints;
+    const SolverSettings& st = *c.settings;
+    const int n = c.n(), m = st.iterations;
+    const double dt = c.h() / n, kappa = st.kappa, tau = st.tau;
+    const double ratio = tau / kappa;
+    const double invKappa = 1 / kappa;  // a product a row instead of up to three divisions
+    const size_t nb = c.bodies();
     // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
     // their bias back each sub-step are listed with what they need.
     targets_.clear();
     speculative_.clear();
-    for (size_t k = 0; k < cs.rows.size(); ++k) {
+    for (int q = 0; q < part.rows.count; ++q) {
+      const size_t k = static_cast<size_t>(part.rows[q]);
       Row& r = cs.rows[k];
       const bool exact = r.velocityTarget && st.motorUnscaled;  // solved with κ = τ = 1
       // A target row's bias is its base already (friction: 0); it moves only with J̌šʲ, which stays
@@ -60,15 +92,8 @@ class HavokActualStepper final : public Stepper {
       }
       r.lambda *= invKappa;  // warm-started impulses, as λ̄
     }
-    sumV_.assign(nb, Vec3::Zero());
-    sumW_.assign(nb, Vec3::Zero());
-    rawV_.assign(nb, Vec3::Zero());
-    rawW_.assign(nb, Vec3::Zero());
-    beginSubSteps(c);
-    if (stableOnly) collectStableRows(c);
-    addExternal(c, dt);  // ŵ¹ = v̌⁰ + ext (š¹ = 0)
     for (int j = 0; j < n; ++j) {
-      startSubStepImpulses(c, j);
+      startSubStepImpulses(c, j, part);
       // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step, and š stays zero when τ = 0.
       const bool shifted = j > 0 && ratio != 0;
       if (shifted)
@@ -82,13 +107,15 @@ class HavokActualStepper final : public Stepper {
         const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
         r.bias = (beta < 0 ? beta : tau * beta) * invKappa + shift;
       }
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) {
+      for (int i = 0; i < m && part.units.count > 0; ++i) {
         if (stableOnly) predictStableRows(c);
-        c.stats.residual = sweep(cs, c.v, c.w, SweepScales{});
+        const double change = sweep(cs, part.units, c.v, c.w, SweepScales{});
+        if (j + 1 == n && i + 1 == m) c.stats.residual = std::max(c.stats.residual, change);  // the last sweep's
       }
-      endSubStepImpulses(c);
+      endSubStepImpulses(c, part);
       // v̌ʲ = ŵʲ - šʲ, recorded for s4; then šʲ⁺¹ and ŵʲ⁺¹.
-      for (size_t i = 0; i < nb; ++i) {
+      for (int q = 0; q < part.bodies.count; ++q) {
+        const size_t i = static_cast<size_t>(part.bodies[q]);
         const Vec3 v = c.v[i] - sumV_[i], w = c.w[i] - sumW_[i];
         c.subV[static_cast<size_t>(j) * nb + i] = v;
         c.subW[static_cast<size_t>(j) * nb + i] = w;
@@ -99,29 +126,25 @@ class HavokActualStepper final : public Stepper {
       }
       if (j + 1 < n) {
         const Vec3 ext = dt * c.model->gravity;
-        for (size_t i = 0; i < nb; ++i) {
+        for (int q = 0; q < part.bodies.count; ++q) {
+          const size_t i = static_cast<size_t>(part.bodies[q]);
           if (c.model->bodies[i].isStatic) continue;
           const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
           c.v[i] = c.subV[static_cast<size_t>(j) * nb + i] + ext + sumV_[i];
           c.w[i] = w + gyroscopicChange(w, c.model->bodies[i].inertia, dt, st.gyroscopic) + sumW_[i];
         }
-        if (!cs.joints.empty()) {
-          advanceSubPoses(c, j, RotationRule::Summed);
-          if (!stableOnly) cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Refresh::JointJacobians, kappa);
+        if (part.joints.count > 0) {
+          advanceSubPoses(c, j, RotationRule::Summed, part.bodies);
+          if (!stableOnly) cs.reformulateJoints(part.joints, c.subPoses, c.mass, dt, kappa);
         }
       }
     }
-    c.stats.iterations = n * m;
-    for (Row& r : cs.rows)
+    for (int q = 0; q < part.rows.count; ++q) {
+      Row& r = cs.rows[static_cast<size_t>(part.rows[q])];
       if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
-    const size_t last = static_cast<size_t>(n - 1) * nb;
-    applyRestitution(c, &c.subV[last], &c.subW[last], kappa);
-    solvePositionErrors(c, n * m, kappa);  // rows apply κM̌⁻¹J̌ᵀ; the split is of β, not β̄
+    }
   }
 
-  void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
-
- private:
   struct Refreshed {
     size_t row;
     double base;  // targets: c·target; speculative rows: β¹

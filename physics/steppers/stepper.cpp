@@ -33,8 +33,14 @@ Vec3 gyroscopicChange(const Vec3& w, const Vec3& I, double dt, Gyroscopic mode) 
 }
 
 void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w) {
-  for (const Row& r : cs.rows)
+  applyRowImpulses(cs, IndexRange{nullptr, 0, static_cast<int>(cs.rows.size())}, v, w);
+}
+
+void applyRowImpulses(ConstraintSet& cs, const IndexRange& rows, std::vector<Vec3>& v, std::vector<Vec3>& w) {
+  for (int k = 0; k < rows.count; ++k) {
+    const Row& r = cs.rows[static_cast<size_t>(rows[k])];
     if (r.lambda != 0) applyImpulse(r, r.lambda, v.data(), w.data());
+  }
 }
 
 namespace {
@@ -185,57 +191,70 @@ SweepScales SweepScales::havok(const SolverSettings& s) {
   return {s.tau, s.kappa, bt, vt, 1};
 }
 
-double sweep(ConstraintSet& cs, std::vector<Vec3>& vv, std::vector<Vec3>& ww, const SweepScales& k) {
-  Row* rows = cs.rows.data();
-  Vec3* v = vv.data();
-  Vec3* w = ww.data();
-  double change = 0;
-  for (const SolveUnit& u : cs.units) {
-    if (u.kind == SolveUnit::Single) {
-      Row& r = rows[u.first];
-      const double target = biasFactor(r, k) * r.bias, cv = velFactor(r, k);
-      change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return r.effMass * (target - cv * jv); }));
-      continue;
-    }
-    // A unit's rows share their two bodies (one manifold, one joint part): their velocities are
-    // read once and written once.
-    const int ia = rows[u.first].a, ib = rows[u.first].b;
-    Vec3 va = v[ia], wa = w[ia], vb = v[ib], wb = w[ib];
-    if (u.kind == SolveUnit::Friction) {  // three singles in a row, bounded by the same Σλn
-      Row* r = &rows[u.first];
-      const FrictionCoupling& g = cs.couplings[static_cast<size_t>(u.block)];
-      const double ln = normalImpulse(r[0], rows);
-      // J̌v̌ of all three at the unit's start; each row's Δλ then moves the later rows' by g.
-      double jv[3] = {rowVelocity(r[0], va, wa, vb, wb), rowVelocity(r[1], va, wa, vb, wb),
-                      rowVelocity(r[2], va, wa, vb, wb)};
-      double d[3];
-      for (int i = 0; i < 3; ++i) {
-        if (i == 1) jv[1] += g.g10 * d[0];
-        if (i == 2) jv[2] += g.g20 * d[0] + g.g21 * d[1];
-        // (Friction rows are never speculative: biasFactor is k.bias or k.biasTarget, as before.)
-        const double next = std::clamp(r[i].lambda + r[i].effMass * (biasFactor(r[i], k) * r[i].bias - velFactor(r[i], k) * jv[i]),
-                                       r[i].lo * ln, r[i].hi * ln);
-        d[i] = next - r[i].lambda;
-        r[i].lambda = next;
-        r[i].pushed = r[i].pushed || next > 0;
-      }
-      for (int i = 0; i < 3; ++i) {
-        if (d[i] == 0) continue;
-        applyImpulse(r[i], d[i], va, wa, vb, wb);
-        noteChange(change, d[i], r[i].effMass);
-      }
-      v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
-      continue;
-    }
-    // Blocks: a joint's stable part (2 or 3 rows) or a manifold's normal rows (2 to 4).
+namespace {
+
+// One solve unit of a sweep (sweep's comment).
+inline void solveUnit(ConstraintSet& cs, const SolveUnit& u, Row* rows, Vec3* v, Vec3* w, const SweepScales& k,
+                      double& change) {
+  if (u.kind == SolveUnit::Single) {
+    Row& r = rows[u.first];
+    const double target = biasFactor(r, k) * r.bias, cv = velFactor(r, k);
+    change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return r.effMass * (target - cv * jv); }));
+    return;
+  }
+  // A unit's rows share their two bodies (one manifold, one joint part): their velocities are
+  // read once and written once.
+  const int ia = rows[u.first].a, ib = rows[u.first].b;
+  Vec3 va = v[ia], wa = w[ia], vb = v[ib], wb = w[ib];
+  if (u.kind == SolveUnit::Friction) {  // three singles in a row, bounded by the same Σλn
     Row* r = &rows[u.first];
-    switch (u.size) {
-      case 2: solveBlockUnit<2>(cs, u, r, k, va, wa, vb, wb, change); break;
-      case 3: solveBlockUnit<3>(cs, u, r, k, va, wa, vb, wb, change); break;
-      default: solveBlockUnit<4>(cs, u, r, k, va, wa, vb, wb, change); break;
+    const FrictionCoupling& g = cs.couplings[static_cast<size_t>(u.block)];
+    const double ln = normalImpulse(r[0], rows);
+    // J̌v̌ of all three at the unit's start; each row's Δλ then moves the later rows' by g.
+    double jv[3] = {rowVelocity(r[0], va, wa, vb, wb), rowVelocity(r[1], va, wa, vb, wb),
+                    rowVelocity(r[2], va, wa, vb, wb)};
+    double d[3];
+    for (int i = 0; i < 3; ++i) {
+      if (i == 1) jv[1] += g.g10 * d[0];
+      if (i == 2) jv[2] += g.g20 * d[0] + g.g21 * d[1];
+      // (Friction rows are never speculative: biasFactor is k.bias or k.biasTarget, as before.)
+      const double next = std::clamp(r[i].lambda + r[i].effMass * (biasFactor(r[i], k) * r[i].bias - velFactor(r[i], k) * jv[i]),
+                                     r[i].lo * ln, r[i].hi * ln);
+      d[i] = next - r[i].lambda;
+      r[i].lambda = next;
+      r[i].pushed = r[i].pushed || next > 0;
+    }
+    for (int i = 0; i < 3; ++i) {
+      if (d[i] == 0) continue;
+      applyImpulse(r[i], d[i], va, wa, vb, wb);
+      noteChange(change, d[i], r[i].effMass);
     }
     v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
+    return;
   }
+  // Blocks: a joint's stable part (2 or 3 rows) or a manifold's normal rows (2 to 4).
+  Row* r = &rows[u.first];
+  switch (u.size) {
+    case 2: solveBlockUnit<2>(cs, u, r, k, va, wa, vb, wb, change); break;
+    case 3: solveBlockUnit<3>(cs, u, r, k, va, wa, vb, wb, change); break;
+    default: solveBlockUnit<4>(cs, u, r, k, va, wa, vb, wb, change); break;
+  }
+  v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
+}
+
+}  // namespace
+
+double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k) {
+  double change = 0;
+  for (const SolveUnit& u : cs.units) solveUnit(cs, u, cs.rows.data(), v.data(), w.data(), k, change);
+  return change;
+}
+
+double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w,
+             const SweepScales& k) {
+  double change = 0;
+  for (int i = 0; i < units.count; ++i)
+    solveUnit(cs, cs.units[static_cast<size_t>(units[i])], cs.rows.data(), v.data(), w.data(), k, change);
   return change;
 }
 
@@ -253,9 +272,14 @@ void beginSubSteps(StepContext& c) {
 }
 
 void advanceSubPoses(StepContext& c, int j, RotationRule rule) {
+  advanceSubPoses(c, j, rule, IndexRange{nullptr, 0, static_cast<int>(c.bodies())});
+}
+
+void advanceSubPoses(StepContext& c, int j, RotationRule rule, const IndexRange& bodies) {
   const double dt = c.h() / c.n();
   const size_t nb = c.bodies();
-  for (size_t i = 0; i < nb; ++i) {
+  for (int k = 0; k < bodies.count; ++k) {
+    const size_t i = static_cast<size_t>(bodies[k]);
     if (c.model->bodies[i].isStatic) continue;
     const Vec3& v = c.subV[static_cast<size_t>(j) * nb + i];
     const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
@@ -270,35 +294,47 @@ void advanceSubPoses(StepContext& c, int j, RotationRule rule) {
   }
 }
 
-void startSubStepImpulses(StepContext& c, int j) {
+void startSubStepImpulses(StepContext& c, int j) { startSubStepImpulses(c, j, c.constraints->whole(c.bodies())); }
+
+void startSubStepImpulses(StepContext& c, int j, const ConstraintPart& part) {
   ConstraintSet& cs = *c.constraints;
   if (!c.settings->warmStart) {
     if (j > 0)
-      for (Row& r : cs.rows) r.lambda = 0;
+      for (int k = 0; k < part.rows.count; ++k) cs.rows[static_cast<size_t>(part.rows[k])].lambda = 0;
     return;
   }
   if (!c.rowsHeld) {
-    applyRowImpulses(cs, c.v, c.w);
+    applyRowImpulses(cs, part.rows, c.v, c.w);
     return;
   }
-  c.startV.assign(c.v.begin(), c.v.end());
-  c.startW.assign(c.w.begin(), c.w.end());
+  const size_t nb = c.bodies();
+  c.startV.resize(nb);  // once: sized for every body, each part writes its own
+  c.startW.resize(nb);
+  for (int k = 0; k < part.bodies.count; ++k) {
+    const size_t i = static_cast<size_t>(part.bodies[k]);
+    c.startV[i] = c.v[i];
+    c.startW[i] = c.w[i];
+  }
   if (j == 0) {  // last step's λ on this step's J̌
-    applyRowImpulses(cs, c.v, c.w);
+    applyRowImpulses(cs, part.rows, c.v, c.w);
     return;
   }
-  for (size_t i = 0; i < c.bodies(); ++i) {
+  for (int k = 0; k < part.bodies.count; ++k) {
+    const size_t i = static_cast<size_t>(part.bodies[k]);
     c.v[i] += c.impV[i];
     c.w[i] += c.impW[i];
   }
 }
 
-void endSubStepImpulses(StepContext& c) {
+void endSubStepImpulses(StepContext& c) { endSubStepImpulses(c, c.constraints->whole(c.bodies())); }
+
+void endSubStepImpulses(StepContext& c, const ConstraintPart& part) {
   if (!c.rowsHeld || !c.settings->warmStart) return;
   const size_t nb = c.bodies();
   c.impV.resize(nb);
   c.impW.resize(nb);
-  for (size_t i = 0; i < nb; ++i) {
+  for (int k = 0; k < part.bodies.count; ++k) {
+    const size_t i = static_cast<size_t>(part.bodies[k]);
     c.impV[i] = c.v[i] - c.startV[i];
     c.impW[i] = c.w[i] - c.startW[i];
   }

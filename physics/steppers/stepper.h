@@ -76,8 +76,10 @@ void addExternal(StepContext& c, double dt);
 // The change of a body-frame angular velocity w over dt from ω × Iω alone (I the principal moments).
 Vec3 gyroscopicChange(const Vec3& w, const Vec3& I, double dt, Gyroscopic mode);
 
-// Applies every row's current λ to the velocities (warm starting): v̌ += M̌⁻¹J̌ᵀλ.
+// Applies every row's current λ to the velocities (warm starting): v̌ += M̌⁻¹J̌ᵀλ, in row order;
+// or those of one part's rows.
 void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w);
+void applyRowImpulses(ConstraintSet& cs, const IndexRange& rows, std::vector<Vec3>& v, std::vector<Vec3>& w);
 
 // The factors of one sweep's row update  Δλ = m_eff (cBias β - cVel J̌ v̌):
 // (ω, ω) for A2's PSOR, (τ, κ) for A3/A4, (1, 1) for A5 (factors baked in). Motors (velocity
@@ -116,8 +118,10 @@ inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment incr
 
 // One Gauss-Seidel sweep over all solve units. For each unit
 //   Δλ = m_eff (cBias β - cVel J̌ v̌),  λ <- proj(λ + Δλ),  v̌ += M̌⁻¹J̌ᵀ Δλ
-// Returns the largest velocity change of a row, |Δλ| / m_eff [m/s or rad/s].
+// Returns the largest velocity change of a row, |Δλ| / m_eff [m/s or rad/s]. The second form
+// sweeps the listed units only (one island's).
 double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k);
+double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k);
 
 // Restitution (an extension: the report has none), after the velocity solve as Box2D does it:
 // every contact point that was closing faster than the threshold at the step's start and pushed
@@ -153,15 +157,20 @@ void recordSubStep(StepContext& c, int j);
 // Starts the coordinates of the sub-steps at the step's (before the first sub-step).
 void beginSubSteps(StepContext& c);
 // Steps c.subPoses past recorded sub-step j with `rule`: the coordinates at t + (j+1) h/n, by
-// the same formulas s4 uses (so after the last sub-step they are s4's result).
+// the same formulas s4 uses (so after the last sub-step they are s4's result). Of every body, or
+// of the listed ones.
 void advanceSubPoses(StepContext& c, int j, RotationRule rule);
+void advanceSubPoses(StepContext& c, int j, RotationRule rule, const IndexRange& bodies);
 // Each sub-step solves a fresh MLCP (the report's algorithms do not warm start): λ = 0; with
 // warm starting, the last sub-step's (or step's) λ instead, applied to the velocities: row by
 // row, or, for j > 0 with c.rowsHeld, as the per-body change endSubStepImpulses recorded (the
-// same sum in another order: equal to rounding).
+// same sum in another order: equal to rounding). For one part of the step (its rows and bodies),
+// or the whole.
+void startSubStepImpulses(StepContext& c, int j, const ConstraintPart& part);
 void startSubStepImpulses(StepContext& c, int j);
 // After a sub-step's sweeps: records what its rows did to the velocities, for the next sub-step's
 // warm start (only with warm starting and c.rowsHeld).
+void endSubStepImpulses(StepContext& c, const ConstraintPart& part);
 void endSubStepImpulses(StepContext& c);
 // proc4:16, the bias update rule: β ← β - J̌ v̌ for every position-level row: not for friction
 // or motors, whose β is a velocity (IV.3.1.4; docs/algorithms.md).
