@@ -215,7 +215,11 @@ void ConstraintSet::findIslands(bool split, bool frictionFirst) {
     if (id < 0) id = count++;
     islandOf_[static_cast<size_t>(i)] = id;
   }
-  count = std::max(count, 1);  // nothing dynamic: one empty island
+  // One island (a pyramid, or nothing dynamic): it is the whole step, no lists needed.
+  if (count <= 1) {
+    islands_.assign(2, Island{});
+    return;
+  }
   auto of = [&](int a, int b) { return std::max(0, islandOf_[static_cast<size_t>(dynamic(a) ? a : b)]); };
   // Bodies, joints and manifolds by counting sort, which keeps the step's order within an island:
   // islands_[k] is where island k's entries start, islands_[count] the end of all.
@@ -281,6 +285,7 @@ void ConstraintSet::findIslands(bool split, bool frictionFirst) {
 }
 
 ConstraintPart ConstraintSet::island(int k) const {
+  if (islands_.size() == 2) return whole(model_->bodies.size());
   const Island& a = islands_[static_cast<size_t>(k)];
   const Island& b = islands_[static_cast<size_t>(k) + 1];
   return {{islandUnits_.data() + a.units, 0, b.units - a.units},

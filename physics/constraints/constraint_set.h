@@ -19,6 +19,16 @@ struct IndexRange {
   int operator[](int k) const { return idx ? idx[k] : first + k; }
 };
 
+// f(i) for every index of r, as size_t; the test for a list is made once, not per index.
+template <class F>
+inline void forEach(const IndexRange& r, F f) {
+  if (r.idx) {
+    for (int k = 0; k < r.count; ++k) f(static_cast<size_t>(r.idx[k]));
+  } else {
+    for (int k = 0; k < r.count; ++k) f(static_cast<size_t>(r.first + k));
+  }
+}
+
 // What a stepper can solve on its own, without reading or writing anything else: the solve units
 // (in solve order), rows (in row order), bodies and joints of one island, or of the whole step.
 struct ConstraintPart {
@@ -74,7 +84,7 @@ class ConstraintSet {
   // are islands of their own. Numbered by their lowest body; each one's units, rows, bodies and
   // joints keep the step's order. With SolverSettings::islands off, one island holds everything.
   int islandCount() const { return static_cast<int>(islands_.size()) - 1; }
-  ConstraintPart island(int k) const;
+  ConstraintPart island(int k) const;  // a single island is whole()
   ConstraintPart whole(size_t bodies) const;  // every unit, row, body (static ones too) and joint
 
   // Largest penetration of any contact point and largest joint error at `poses` [m].

@@ -48,8 +48,9 @@ class HavokActualStepper final : public Stepper {
     addExternal(c, dt);  // ŵ¹ = v̌⁰ + ext (š¹ = 0)
     // Islands share no body and no row, so each can go through all n sub-steps on its own, its
     // rows in cache: the same arithmetic in the same order within each island, so the same
-    // numbers as all at once. The stable-row prediction works on every body at once: one part.
-    if (stableOnly) {
+    // numbers as all at once. The stable-row prediction works on every body at once: one part;
+    // so does a step that is one island (a pyramid), without the islands' index lists.
+    if (stableOnly || cs.islandCount() == 1) {
       solvePart(c, cs.whole(nb), stableOnly);
     } else {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly);
@@ -76,22 +77,21 @@ class HavokActualStepper final : public Stepper {
     // their bias back each sub-step are listed with what they need.
     targets_.clear();
     speculative_.clear();
-    for (int q = 0; q < part.rows.count; ++q) {
-      const size_t k = static_cast<size_t>(part.rows[q]);
+    forEach(part.rows, [&](size_t k) {
       Row& r = cs.rows[k];
       const bool exact = r.velocityTarget && st.motorUnscaled;  // solved with κ = τ = 1
       // A target row's bias is its base already (friction: 0); it moves only with J̌šʲ, which stays
       // zero when τ = 0.
       if (r.velocityLevel && ratio != 0) targets_.push_back({k, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
       if (r.speculative) speculative_.push_back({k, r.bias});
-      if (exact) continue;
+      if (exact) return;
       r.bias *= ratio;
       if (r.normalRow < 0) {  // friction bounds are μ times the normal's λ̄ already
         r.lo *= invKappa;
         r.hi *= invKappa;
       }
       r.lambda *= invKappa;  // warm-started impulses, as λ̄
-    }
+    });
     for (int j = 0; j < n; ++j) {
       startSubStepImpulses(c, j, part);
       // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step, and š stays zero when τ = 0.
@@ -114,8 +114,7 @@ class HavokActualStepper final : public Stepper {
       }
       endSubStepImpulses(c, part);
       // v̌ʲ = ŵʲ - šʲ, recorded for s4; then šʲ⁺¹ and ŵʲ⁺¹.
-      for (int q = 0; q < part.bodies.count; ++q) {
-        const size_t i = static_cast<size_t>(part.bodies[q]);
+      forEach(part.bodies, [&](size_t i) {
         const Vec3 v = c.v[i] - sumV_[i], w = c.w[i] - sumW_[i];
         c.subV[static_cast<size_t>(j) * nb + i] = v;
         c.subW[static_cast<size_t>(j) * nb + i] = w;
@@ -123,26 +122,25 @@ class HavokActualStepper final : public Stepper {
         sumW_[i] += ratio * w;
         rawV_[i] += v;
         rawW_[i] += w;
-      }
+      });
       if (j + 1 < n) {
         const Vec3 ext = dt * c.model->gravity;
-        for (int q = 0; q < part.bodies.count; ++q) {
-          const size_t i = static_cast<size_t>(part.bodies[q]);
-          if (c.model->bodies[i].isStatic) continue;
+        forEach(part.bodies, [&](size_t i) {
+          if (c.model->bodies[i].isStatic) return;
           const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
           c.v[i] = c.subV[static_cast<size_t>(j) * nb + i] + ext + sumV_[i];
           c.w[i] = w + gyroscopicChange(w, c.model->bodies[i].inertia, dt, st.gyroscopic) + sumW_[i];
-        }
+        });
         if (part.joints.count > 0) {
           advanceSubPoses(c, j, RotationRule::Summed, part.bodies);
           if (!stableOnly) cs.reformulateJoints(part.joints, c.subPoses, c.mass, dt, kappa);
         }
       }
     }
-    for (int q = 0; q < part.rows.count; ++q) {
-      Row& r = cs.rows[static_cast<size_t>(part.rows[q])];
+    forEach(part.rows, [&](size_t q) {
+      Row& r = cs.rows[q];
       if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
-    }
+    });
   }
 
   struct Refreshed {

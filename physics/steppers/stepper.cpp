@@ -37,10 +37,10 @@ void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>
 }
 
 void applyRowImpulses(ConstraintSet& cs, const IndexRange& rows, std::vector<Vec3>& v, std::vector<Vec3>& w) {
-  for (int k = 0; k < rows.count; ++k) {
-    const Row& r = cs.rows[static_cast<size_t>(rows[k])];
+  forEach(rows, [&](size_t q) {
+    const Row& r = cs.rows[q];
     if (r.lambda != 0) applyImpulse(r, r.lambda, v.data(), w.data());
-  }
+  });
 }
 
 namespace {
@@ -194,7 +194,7 @@ SweepScales SweepScales::havok(const SolverSettings& s) {
 namespace {
 
 // One solve unit of a sweep (sweep's comment).
-inline void solveUnit(ConstraintSet& cs, const SolveUnit& u, Row* rows, Vec3* v, Vec3* w, const SweepScales& k,
+__attribute__((always_inline)) inline void solveUnit(ConstraintSet& cs, const SolveUnit& u, Row* rows, Vec3* v, Vec3* w, const SweepScales& k,
                       double& change) {
   if (u.kind == SolveUnit::Single) {
     Row& r = rows[u.first];
@@ -245,13 +245,12 @@ inline void solveUnit(ConstraintSet& cs, const SolveUnit& u, Row* rows, Vec3* v,
 }  // namespace
 
 double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k) {
-  double change = 0;
-  for (const SolveUnit& u : cs.units) solveUnit(cs, u, cs.rows.data(), v.data(), w.data(), k, change);
-  return change;
+  return sweep(cs, IndexRange{nullptr, 0, static_cast<int>(cs.units.size())}, v, w, k);
 }
 
 double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w,
              const SweepScales& k) {
+  // One loop for both forms: a second copy of it made GCC stop inlining the block solves.
   double change = 0;
   for (int i = 0; i < units.count; ++i)
     solveUnit(cs, cs.units[static_cast<size_t>(units[i])], cs.rows.data(), v.data(), w.data(), k, change);
@@ -278,9 +277,8 @@ void advanceSubPoses(StepContext& c, int j, RotationRule rule) {
 void advanceSubPoses(StepContext& c, int j, RotationRule rule, const IndexRange& bodies) {
   const double dt = c.h() / c.n();
   const size_t nb = c.bodies();
-  for (int k = 0; k < bodies.count; ++k) {
-    const size_t i = static_cast<size_t>(bodies[k]);
-    if (c.model->bodies[i].isStatic) continue;
+  forEach(bodies, [&](size_t i) {
+    if (c.model->bodies[i].isStatic) return;
     const Vec3& v = c.subV[static_cast<size_t>(j) * nb + i];
     const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
     c.sumV[i] += dt * v;
@@ -291,7 +289,7 @@ void advanceSubPoses(StepContext& c, int j, RotationRule rule, const IndexRange&
       c.sumW[i] += dt * w;
       c.subPoses[i].q = (c.poses[i].q * Rq(c.sumW[i])).normalized();
     }
-  }
+  });
 }
 
 void startSubStepImpulses(StepContext& c, int j) { startSubStepImpulses(c, j, c.constraints->whole(c.bodies())); }
@@ -310,20 +308,18 @@ void startSubStepImpulses(StepContext& c, int j, const ConstraintPart& part) {
   const size_t nb = c.bodies();
   c.startV.resize(nb);  // once: sized for every body, each part writes its own
   c.startW.resize(nb);
-  for (int k = 0; k < part.bodies.count; ++k) {
-    const size_t i = static_cast<size_t>(part.bodies[k]);
+  forEach(part.bodies, [&](size_t i) {
     c.startV[i] = c.v[i];
     c.startW[i] = c.w[i];
-  }
+  });
   if (j == 0) {  // last step's λ on this step's J̌
     applyRowImpulses(cs, part.rows, c.v, c.w);
     return;
   }
-  for (int k = 0; k < part.bodies.count; ++k) {
-    const size_t i = static_cast<size_t>(part.bodies[k]);
+  forEach(part.bodies, [&](size_t i) {
     c.v[i] += c.impV[i];
     c.w[i] += c.impW[i];
-  }
+  });
 }
 
 void endSubStepImpulses(StepContext& c) { endSubStepImpulses(c, c.constraints->whole(c.bodies())); }
@@ -333,11 +329,10 @@ void endSubStepImpulses(StepContext& c, const ConstraintPart& part) {
   const size_t nb = c.bodies();
   c.impV.resize(nb);
   c.impW.resize(nb);
-  for (int k = 0; k < part.bodies.count; ++k) {
-    const size_t i = static_cast<size_t>(part.bodies[k]);
+  forEach(part.bodies, [&](size_t i) {
     c.impV[i] = c.v[i] - c.startV[i];
     c.impW[i] = c.w[i] - c.startW[i];
-  }
+  });
 }
 
 void updateBiases(ConstraintSet& cs, const std::vector<Vec3>& v, const std::vector<Vec3>& w) {
