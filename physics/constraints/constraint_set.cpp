@@ -175,7 +175,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     normalUnits();
     frictionUnits();
   }
-  finish(0, static_cast<int>(rows.size()), mass, applyScale);
+  finishAll(mass, applyScale);
   // The active set each contact block ended the last step with is where this step's starts.
   for (size_t k = 0; k < frictions.size(); ++k)
     if (frictions[k].unit >= 0)
@@ -186,6 +186,11 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
 void ConstraintSet::findIslands(bool split, bool frictionFirst) {
   // Only the bodies of manifolds and joints are read, never the rows: reading every row again
   // made this a tenth of a 10 000-box step.
+  // Islands off: one island, the whole step (island() gives whole()).
+  if (!split) {
+    islands_.assign(2, Island{});
+    return;
+  }
   const std::vector<Body>& bodies = model_->bodies;
   const int nb = static_cast<int>(bodies.size());
   auto dynamic = [&](int i) { return !bodies[static_cast<size_t>(i)].isStatic; };
@@ -202,20 +207,18 @@ void ConstraintSet::findIslands(bool split, bool frictionFirst) {
     a = root(a), b = root(b);
     if (a != b) parent_[static_cast<size_t>(std::max(a, b))] = std::min(a, b);  // the lowest body is the root
   };
-  if (split) {
-    for (const FrictionDef& f : frictions) unite(f.a, f.b);
-    for (const JointRef& ref : joints) unite(jointBodies(ref).bodyA, jointBodies(ref).bodyB);
-  }
+  for (const FrictionDef& f : frictions) unite(f.a, f.b);
+  for (const JointRef& ref : joints) unite(jointBodies(ref).bodyA, jointBodies(ref).bodyB);
   // Islands numbered in order of their lowest body.
   islandOf_.assign(static_cast<size_t>(nb), -1);
   int count = 0;
   for (int i = 0; i < nb; ++i) {
     if (!dynamic(i)) continue;
-    int& id = islandOf_[static_cast<size_t>(split ? root(i) : 0)];
+    int& id = islandOf_[static_cast<size_t>(root(i))];
     if (id < 0) id = count++;
     islandOf_[static_cast<size_t>(i)] = id;
   }
-  // One island (a pyramid, or nothing dynamic): it is the whole step, no lists needed.
+  // One island (a pyramid, or nothing dynamic): the whole step, no lists needed.
   if (count <= 1) {
     islands_.assign(2, Island{});
     return;
@@ -306,8 +309,7 @@ void ConstraintSet::reformulateJoints(const IndexRange& list, const std::vector<
   for (int k = 0; k < list.count; ++k) {
     const JointRef& ref = joints[static_cast<size_t>(list[k])];
     formulateJoint(ref, poses, h, true);
-    finishRows(ref.first, ref.first + ref.count, mass, applyScale);
-    for (int u = ref.firstUnit; u < ref.firstUnit + ref.units; ++u) finishUnit(units[static_cast<size_t>(u)], mass, applyScale);
+    finishJoint(ref, mass, applyScale);
   }
 }
 
@@ -381,10 +383,18 @@ void formBlock(const Row* b, const double (&unscale)[4], const BodyMass* mass, b
 
 }  // namespace
 
-void ConstraintSet::finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale) {
-  finishRows(firstRow, lastRow, mass, applyScale);
-  for (SolveUnit& u : units)
-    if (u.first >= firstRow && u.first < lastRow) finishUnit(u, mass, applyScale);
+void ConstraintSet::finishAll(const std::vector<BodyMass>& mass, double applyScale) {
+  finishRows(0, static_cast<int>(rows.size()), mass, applyScale);
+  for (SolveUnit& u : units) finishUnit(u, mass, applyScale);
+}
+
+void ConstraintSet::finishJoint(const JointRef& ref, const std::vector<BodyMass>& mass, double applyScale) {
+  finishRows(ref.first, ref.first + ref.count, mass, applyScale);
+  for (int u = ref.firstUnit; u < ref.firstUnit + ref.units; ++u) finishUnit(units[static_cast<size_t>(u)], mass, applyScale);
+}
+
+void ConstraintSet::refinishJoints(const std::vector<BodyMass>& mass, double applyScale) {
+  for (const JointRef& ref : joints) finishJoint(ref, mass, applyScale);
 }
 
 void ConstraintSet::finishRows(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale) {
@@ -450,9 +460,9 @@ void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vecto
       formulateFriction(f, frames_[static_cast<size_t>(f.a)], frames_[static_cast<size_t>(f.b)], fr, false);
       for (int k = 0; k < 3; ++k) fr[k].velocityLevel = level;
     }
-    finish(0, static_cast<int>(rows.size()), mass, applyScale);
+    finishAll(mass, applyScale);
   } else {
-    finish(0, contactFirstRow, mass, applyScale);  // joint rows only
+    refinishJoints(mass, applyScale);
   }
 }
 

@@ -64,7 +64,7 @@ class ConstraintSet {
                          double h, double applyScale);
   // Recomputes M̌⁻¹J̌ᵀ, the effective masses and the blocks of the joint rows after their J̌
   // changed (A5's stable-row prediction).
-  void refinishJoints(const std::vector<BodyMass>& mass, double applyScale) { finish(0, contactFirstRow, mass, applyScale); }
+  void refinishJoints(const std::vector<BodyMass>& mass, double applyScale);
   // Keeps this step's impulses: in the manifolds (for warm starting and overlays) and per joint.
   void storeImpulses(std::vector<Manifold>& manifolds);
   // Records each contact's normal velocity J̌v̌ at the step's start, for restitution.
@@ -80,7 +80,7 @@ class ConstraintSet {
   int contactFirstRow = 0;             // rows from here on are contacts and friction
 
   // Islands: bodies that constraints join, directly or through other bodies (a static body joins
-  // nothing), found by union-find over the units in build(). Dynamic bodies that touch nothing
+  // nothing), found by union-find over the manifolds and joints in build(). Dynamic bodies that touch nothing
   // are islands of their own. Numbered by their lowest body; each one's units, rows, bodies and
   // joints keep the step's order. With SolverSettings::islands off, one island holds everything.
   int islandCount() const { return static_cast<int>(islands_.size()) - 1; }
@@ -93,9 +93,12 @@ class ConstraintSet {
 
  private:
   void formulateJoint(const JointRef& ref, const std::vector<Pose>& poses, double h, bool jacobianOnly);
-  void finish(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale);
+  // M̌⁻¹J̌ᵀ and effective masses of rows, and the blocks or couplings of units: of everything, of
+  // one joint's rows and units, of a row range, of one unit.
+  void finishAll(const std::vector<BodyMass>& mass, double applyScale);
+  void finishJoint(const JointRef& ref, const std::vector<BodyMass>& mass, double applyScale);
   void finishRows(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale);
-  void finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale);  // its block or couplings
+  void finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale);
 
   const Model* model_ = nullptr;
   double slop_ = 0;

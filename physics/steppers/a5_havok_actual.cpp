@@ -48,9 +48,9 @@ class HavokActualStepper final : public Stepper {
     addExternal(c, dt);  // ŵ¹ = v̌⁰ + ext (š¹ = 0)
     // Islands share no body and no row, so each can go through all n sub-steps on its own, its
     // rows in cache: the same arithmetic in the same order within each island, so the same
-    // numbers as all at once. The stable-row prediction works on every body at once: one part;
-    // so does a step that is one island (a pyramid), without the islands' index lists.
-    if (stableOnly || cs.islandCount() == 1) {
+    // numbers as all at once. The stable-row prediction works on every body at once: one part.
+    // (A step that is one island, a pyramid, gets the whole without index lists from island(0).)
+    if (stableOnly) {
       solvePart(c, cs.whole(nb), stableOnly);
     } else {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly);

@@ -113,12 +113,23 @@ void assembleMLCP(const std::vector<Row>& rows, const std::vector<BodyMass>& mas
   }
 }
 
+namespace {
+
+// (Γλ - b)_i: row i's velocity error at λ = x.
+double rowResidual(const DenseMLCP& p, const std::vector<double>& x, int i) {
+  const int n = p.n;
+  double wi = -p.b[static_cast<size_t>(i)];
+  for (int k = 0; k < n; ++k) wi += p.A[static_cast<size_t>(i * n + k)] * x[static_cast<size_t>(k)];
+  return wi;
+}
+
+}  // namespace
+
 double mlcpResidual(const DenseMLCP& p, const std::vector<double>& x) {
   const int n = p.n;
   double worst = 0;
   for (int i = 0; i < n; ++i) {
-    double wi = -p.b[static_cast<size_t>(i)];
-    for (int k = 0; k < n; ++k) wi += p.A[static_cast<size_t>(i * n + k)] * x[static_cast<size_t>(k)];
+    const double wi = rowResidual(p, x, i);
     double lo, hi;
     bounds(p, x, i, lo, hi);
     const double d = p.A[static_cast<size_t>(i * n + i)];
@@ -301,11 +312,7 @@ void polish(const DenseMLCP& p, std::vector<double>& x, Budget& budget) {
         bounds(p, x, i, lo, hi);
         double xi = x[s];
         const double d = p.A[static_cast<size_t>(i * n + i)];
-        if (naturalMap && d > 0) {
-          double wi = -p.b[s];
-          for (int k = 0; k < n; ++k) wi += p.A[static_cast<size_t>(i * n + k)] * x[static_cast<size_t>(k)];
-          xi -= wi / d;
-        }
+        if (naturalMap && d > 0) xi -= rowResidual(p, x, i) / d;
         const int f = p.findex[s];
         if (xi <= lo + tol && !std::isinf(lo)) {
           S(i, i) = 1;  // λ = -μΣλn or lo
@@ -346,8 +353,7 @@ void densePgs(const DenseMLCP& p, std::vector<double>& x, int sweeps) {
     for (int i = 0; i < n; ++i) {
       const double d = p.A[static_cast<size_t>(i * n + i)];
       if (d <= 0) continue;
-      double wi = -p.b[static_cast<size_t>(i)];
-      for (int k = 0; k < n; ++k) wi += p.A[static_cast<size_t>(i * n + k)] * x[static_cast<size_t>(k)];
+      const double wi = rowResidual(p, x, i);
       double lo, hi;
       bounds(p, x, i, lo, hi);
       x[static_cast<size_t>(i)] = std::clamp(x[static_cast<size_t>(i)] - wi / d, lo, hi);
