@@ -9,6 +9,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <random>
+#include <tuple>
 
 using namespace substep_test;
 namespace fs = std::filesystem;
@@ -310,6 +312,115 @@ TEST(Server, BadParametersNameTheParameter) {
   // Bodies over the cap: 413.
   const Answer big = call(*c, "POST", "/api/sessions", R"({"scene": ")" + std::string(100000, 'x') + "\"}");
   EXPECT_EQ(big.status, 413);
+}
+
+// Bodies that are not a JSON object of the call (random bytes, NUL bytes, invalid UTF-8 in and out
+// of strings and keys, truncated JSON, long non-ASCII names that a message cuts short) are 400 at
+// every POST endpoint, with a JSON body (so valid UTF-8) naming the problem; never 500. Paths with
+// such bytes are 404 or 405 in JSON. A fixed seed: the same requests every run.
+TEST(Server, BadBodiesAreRefusedAt400) {
+  ServerProcess srv(small());
+  auto c = srv.client();
+  const std::string s = "/api/sessions/" + create(*c, {{"scene", "pyramid"}});
+  // Every POST endpoint with a body, with the fields it reads. POST .../close reads no body: what
+  // a closing page's beacon sends closes the session whatever it holds.
+  const std::vector<std::pair<std::string, std::vector<std::string>>> endpoints = {
+      {"/api/sessions", {"scene", "method", "methods", "size", "fps", "play", "speed"}},
+      {s + "/settings", {"panel", "method", "settings"}},
+      {s + "/panels", {"methods"}},
+      {s + "/scene", {"scene", "methods"}},
+      {s + "/camera", {"preset", "yaw", "pitch", "distance", "fov", "target", "follow", "orbit", "rotate", "zoom", "pan"}},
+      {s + "/view", {"colour", "color", "contacts", "joints", "hud", "speed_scale", "error_scale", "highlight"}},
+      {s + "/play", {"speed"}},
+      {s + "/pause", {}},
+      {s + "/step", {"count"}},
+      {s + "/reset", {}},
+      {s + "/seek", {"time"}},
+      {s + "/pick", {"x", "y"}},
+      {s + "/push", {"x", "y", "speed", "body", "impulse", "point"}},
+      {s + "/clips", {"mode", "seconds"}},
+  };
+  std::mt19937 rng(20240521);
+  const auto below = [&](size_t n) { return static_cast<size_t>(rng() % n); };
+  const auto bytes = [&](size_t n, bool anyByte) {
+    std::string b;
+    for (size_t i = 0; i < n; ++i) b += static_cast<char>(anyByte ? below(256) : 0x20 + below(0x5f));
+    return b;
+  };
+  const std::vector<std::string> notUtf8 = {"\xff", "\xfe", "\xc0\xaf", "\xc3\x28", "\xe2\x82", "\xed\xa0\x80",
+                                            "\xf4\x90\x80\x80", "\x80", "\xf8\x88\x80\x80\x80"};
+  const auto bad = [&] { return notUtf8[below(notUtf8.size())]; };
+  // A few "a" and then two- and three-byte characters: a message that cuts it after so many
+  // bytes may cut one in half.
+  const auto longName = [&] {
+    std::string n(1 + below(3), 'a');
+    for (size_t i = 0, k = 40 + below(40); i < k; ++i) n += i % 2 ? "\xc3\xa9" : "\xe2\x82\xac";
+    return n;
+  };
+  const auto body = [&](const std::vector<std::string>& fields) -> std::string {
+    const std::string field = fields.empty() ? "speed" : fields[below(fields.size())];
+    const json valid = {{field, json::array({1, "x", {{"k", 2.5}}})}};
+    switch (below(8)) {
+      case 0: {  // random bytes with a NUL: never JSON
+        std::string b = bytes(1 + below(80), true);
+        b.insert(below(b.size() + 1), 1, '\0');
+        return b;
+      }
+      case 1: {  // random bytes with a byte that is never UTF-8
+        std::string b = bytes(1 + below(80), true);
+        return b.insert(below(b.size() + 1), "\xff");
+      }
+      case 2: {  // JSON cut short
+        const std::string j = valid.dump();
+        return j.substr(0, 1 + below(j.size() - 1));
+      }
+      case 3:  // invalid UTF-8 in a string value
+        return "{\"" + field + "\": \"" + bytes(below(10), false) + bad() + bytes(below(10), false) + "\"}";
+      case 4:  // invalid UTF-8 in a key
+        return "{\"" + bytes(below(5), false) + bad() + "\": 1}";
+      case 5:  // valid JSON, a long non-ASCII key: an unknown field
+        return json{{longName(), 1}}.dump();
+      case 6:  // valid JSON, a long non-ASCII string where the field wants something else
+        return json{{field, longName()}}.dump();
+      default: {  // valid JSON with a NUL or invalid UTF-8 after it
+        std::string j = valid.dump();
+        return j.insert(below(j.size() + 1), below(2) ? std::string(1, '\0') : bad());
+      }
+    }
+  };
+  int requests = 0, refused = 0;
+  for (int round = 0; round < 24; ++round)
+    for (const auto& [path, fields] : endpoints) {
+      const std::string b = body(fields);
+      const Answer a = call(*c, "POST", path, b);
+      ++requests;
+      std::string shown;  // the body, bytes outside printable ASCII as \xNN
+      for (unsigned char ch : b) {
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "\\x%02x", ch);
+        shown += ch >= 0x20 && ch < 0x7f ? std::string(1, static_cast<char>(ch)) : std::string(hex);
+      }
+      const bool ok = a.status == 400 && a.body.is_object() && a.body.contains("error") && a.body["error"].is_string() &&
+                      !a.body["error"].get<std::string>().empty();
+      refused += ok;
+      EXPECT_TRUE(ok) << path << " " << shown << " -> " << a.status << " " << a.text.substr(0, 300);
+    }
+  EXPECT_EQ(refused, requests) << "of " << requests << " bad bodies, " << requests - refused << " not answered 400 with an error";
+  // Ids and paths that are not UTF-8, which the answers quote: 404 or 405 in JSON (the 405 comes
+  // from httplib's error handler, where a throw would end the server).
+  const std::vector<std::tuple<std::string, std::string, int>> paths = {
+      {"POST", "/api/sessions/%ff%fe", 404}, {"POST", "/api/sessions/a%c3%28/play", 404}, {"GET", "/api/x%ff", 404},
+      {"GET", "/%ff.html", 404},             {"POST", "/api/x%ff", 405},                  {"DELETE", "/%c3", 405}};
+  for (const auto& [method, path, status] : paths) {
+    const Answer a = call(*c, method, path, "{}");
+    EXPECT_EQ(a.status, status) << method << " " << path << " -> " << a.text;
+    EXPECT_TRUE(a.body.is_object() && !a.body.value("error", "").empty()) << method << " " << path << " -> " << a.text;
+  }
+  // The session lived through it, unchanged.
+  const Answer st = call(*c, "GET", s);
+  ASSERT_EQ(st.status, 200);
+  EXPECT_EQ(st.body["panels"].size(), 1u);
+  EXPECT_EQ(st.body["time"], 0);
 }
 
 TEST(Server, PlayPauseStepSeekReset) {

@@ -2,6 +2,7 @@
 #include "app/server/api_json.h"
 
 #include "app/common.h"
+#include "app/server/http.h"
 #include "app/server/requests.h"
 #include "render/scene_builder.h"
 
@@ -218,7 +219,7 @@ json statsJson(const LiveStats& s) {
 
 json clipJson(const ClipInfo& c, const std::string& sessionId) {
   json j = {{"id", c.id}, {"mode", c.mode}, {"seconds", c.seconds}, {"state", c.state}, {"frames", c.frames}};
-  if (!c.error.empty()) j["error"] = c.error;
+  if (!c.error.empty()) j["error"] = validUtf8(c.error);  // ffmpeg's words, whatever bytes they are
   if (c.state == "done") {
     j["bytes"] = c.bytes;
     j["url"] = "/api/sessions/" + sessionId + "/clips/" + std::to_string(c.id) + ".mp4";

@@ -15,10 +15,55 @@ namespace substep::app::web {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// The length of the well-formed UTF-8 character at s[i] (Unicode's table 3-7: no overlong form,
+// no surrogate, nothing past U+10FFFF), 0 if the byte there starts none.
+size_t characterLength(const std::string& s, size_t i) {
+  const auto at = [&](size_t k) { return i + k < s.size() ? static_cast<unsigned char>(s[i + k]) : 0; };
+  const auto tail = [&](size_t k) { return at(k) >= 0x80 && at(k) <= 0xbf; };
+  const unsigned char c = at(0);
+  if (c < 0x80) return 1;
+  if (c >= 0xc2 && c <= 0xdf) return tail(1) ? 2 : 0;
+  if (c >= 0xe0 && c <= 0xef) {
+    const unsigned char lo = c == 0xe0 ? 0xa0 : 0x80, hi = c == 0xed ? 0x9f : 0xbf;
+    return at(1) >= lo && at(1) <= hi && tail(2) ? 3 : 0;
+  }
+  if (c >= 0xf0 && c <= 0xf4) {
+    const unsigned char lo = c == 0xf0 ? 0x90 : 0x80, hi = c == 0xf4 ? 0x8f : 0xbf;
+    return at(1) >= lo && at(1) <= hi && tail(2) && tail(3) ? 4 : 0;
+  }
+  return 0;
+}
+
+}  // namespace
+
+std::string validUtf8(const std::string& s) {
+  std::string r;
+  r.reserve(s.size());
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = characterLength(s, i);
+    if (n == 0) {
+      r += "\xef\xbf\xbd";  // U+FFFD
+      ++i;
+    } else {
+      r.append(s, i, n);
+      i += n;
+    }
+  }
+  return r;
+}
+
+std::string utf8Prefix(const std::string& s, size_t max) {
+  const std::string v = validUtf8(s);
+  size_t end = 0;
+  while (end < v.size() && end + characterLength(v, end) <= max) end += characterLength(v, end);
+  return v.substr(0, end);
+}
+
 std::string quote(const json& v) {
-  std::string s = v.dump();
-  if (s.size() > limits::kMaxMessageValue) s = s.substr(0, limits::kMaxMessageValue) + "...";
-  return s;
+  const std::string s = v.dump();
+  return s.size() > limits::kMaxMessageValue ? utf8Prefix(s, limits::kMaxMessageValue) + "..." : s;
 }
 
 std::string joined(const std::vector<std::string>& v) {
@@ -42,7 +87,7 @@ Fields::Fields(const Request& req, const std::vector<std::string>& allowed) {
   }
   for (const auto& [k, v] : j_.items())
     if (std::find(allowed.begin(), allowed.end(), k) == allowed.end())
-      throw HttpError(400, "unknown field \"" + k.substr(0, limits::kMaxMessageValue) + "\"; expected " +
+      throw HttpError(400, "unknown field \"" + utf8Prefix(k, limits::kMaxMessageValue) + "\"; expected " +
                                (allowed.empty() ? std::string("none") : "one of " + joined(allowed)));
 }
 
@@ -94,7 +139,7 @@ void sendJson(Response& res, const json& j, int status) {
 }
 
 void sendError(Response& res, int status, const std::string& message) {
-  sendJson(res, {{"error", message}}, status);
+  sendJson(res, {{"error", validUtf8(message)}}, status);
 }
 
 // --- files ---
@@ -187,7 +232,7 @@ void Router::notFound(const Request& req, Response& res) const {
   for (const auto& [m, re] : routes_)
     if (m != req.method && std::regex_match(req.path, re) && std::find(allowed.begin(), allowed.end(), m) == allowed.end())
       allowed.push_back(m);
-  const std::string what = req.method + " " + req.path.substr(0, 200);
+  const std::string what = req.method + " " + utf8Prefix(req.path, 200);
   if (allowed.empty()) return sendError(res, 404, "no such path: " + what + " (docs/server.md lists the API)");
   res.set_header("Allow", joined(allowed));
   sendError(res, 405, what + ": expected " + joined(allowed));

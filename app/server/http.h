@@ -31,6 +31,11 @@ struct HttpError : std::runtime_error {
   std::vector<std::pair<std::string, std::string>> headers;
 };
 
+// Text quoted from a request (bytes of a body, a path, a name) may be anything, and a JSON answer
+// must be UTF-8: each byte that does not start a well-formed character becomes U+FFFD.
+std::string validUtf8(const std::string& s);
+// validUtf8(s) cut to at most `max` bytes, at a character's boundary.
+std::string utf8Prefix(const std::string& s, size_t max);
 // A value as a message quotes it: its JSON, cut short after limits::kMaxMessageValue bytes.
 std::string quote(const json& v);
 std::string joined(const std::vector<std::string>& v);
@@ -58,7 +63,9 @@ class Fields {
 };
 
 void sendJson(Response& res, const json& j, int status = 200);
-// {"error": message}.
+// {"error": message}, the message made valid UTF-8 whatever it quotes (a JSON parser's message
+// quotes the bytes it read; other layers cut values after so many bytes), so that an error can
+// always be answered: dump() throws on invalid UTF-8.
 void sendError(Response& res, int status, const std::string& message);
 
 // The Content-Type of a file served by its extension (".html"), nullptr for one not served.

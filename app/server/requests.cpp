@@ -90,7 +90,7 @@ void changeSettings(SolverOverrides& u, const json& set) {
   if (set.contains("algorithm") || set.contains("algo")) u = SolverOverrides{};
   for (const auto& [key, v] : set.items()) {
     const SettingSpec* spec = findSetting(key);
-    const std::string name = "settings." + key.substr(0, limits::kMaxMessageValue);
+    const std::string name = "settings." + utf8Prefix(key, limits::kMaxMessageValue);
     if (!spec) throw HttpError(400, name + ": unknown setting; expected one of algorithm, " + settingKeys());
     try {
       if (v.is_null())

@@ -109,7 +109,7 @@ void Sessions::open(const std::shared_ptr<WebSession>& s, const std::vector<Pane
 }
 
 HttpError Sessions::noSuchSession(const std::string& id) const {
-  return HttpError(404, "no session \"" + id.substr(0, 40) + "\" (closed, or expired after " +
+  return HttpError(404, "no session \"" + utf8Prefix(id, 40) + "\" (closed, or expired after " +
                             numberText(o_.idleTimeout) + " s without a request or a stream)");
 }
 
