@@ -31,35 +31,23 @@ struct AdviseCmdOptions {
 std::string runLine(const std::string& scenePathText, const Scene& scene, const lab::Method& m, const SolverSettings& want,
                     double seconds) {
   SolverOverrides cl = m.overrides;
-  cl.dt = want.dt;
-  const auto wanted = lab::settingValues(m, want);
+  cl.set(&SolverSettings::dt, want.dt);
   for (int round = 0; round < 3; ++round) {
     const SolverSettings got = resolveSettings(scene, cl);
-    const auto have = lab::settingValues(m, got);
     bool same = true;
-    for (const lab::SettingValue& w : wanted)
-      for (const lab::SettingValue& h : have)
-        if (w.key == h.key && w.text != h.text) {
-          findSetting(w.key)->setText(cl, w.text);
-          same = false;
-        }
+    for (const SettingSpec& spec : settingTable())
+      if (spec.resolved() && spec.takes.has(want.algorithm) && spec.get(got) != spec.get(want)) {
+        cl.set(spec, spec.get(want));
+        same = false;
+      }
     if (same) break;
   }
-  std::string line = "substep run " + scenePathText;
-  for (const SettingSpec& spec : settingTable()) {
-    if (!spec.isSet(cl)) continue;
-    const std::string v = spec.valueText(cl);
-    if (spec.kind == SettingKind::Flag)
-      line += std::string(" --") + (v == "on" ? "" : "no-") + spec.flag;
-    else
-      line += std::string(" --") + spec.flag + " " + (std::string(spec.key) == "dt" ? lab::stepText(want.dt) : v);
-  }
-  return line + " --seconds " + numberText(seconds);
+  return "substep run " + scenePathText + flagsText(cl) + " --seconds " + numberText(seconds);
 }
 
 std::string costText(const lab::RunResult& r) {
   std::ostringstream o;
-  o << std::setprecision(3) << r.cost.msPerStep << " ms/step at h = " << lab::stepText(r.settings.dt) << ", " << r.msPerSecond()
+  o << std::setprecision(3) << r.cost.msPerStep << " ms/step at h = " << stepText(r.settings.dt) << ", " << r.msPerSecond()
     << " ms per simulated second";
   return o.str();
 }

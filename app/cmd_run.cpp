@@ -122,7 +122,7 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       if (!opt->quiet)
         std::cout << "scene     " << scene.file << " (" << scene.model.dynamicCount() << " dynamic bodies, "
                   << scene.model.joints.size() << " joints)\n"
-                  << "solver    " << describe(settings) << "\n";
+                  << "solver    " << settingsLine(settings) << "\n";
       sample(nullptr);
       Progress progress("run", steps, !opt->quiet);
       InterruptGuard interrupt;

@@ -205,7 +205,7 @@ int runSweep(const SweepOptions& o) {
       char cost[64];
       std::snprintf(cost, sizeof cost, "%.4g ms/step", result.cost.msPerStep);
       std::cout << "[" << n << "/" << todo.size() << "] " << lab::sceneName(scene) << "  " << run.method.text << "  h="
-                << lab::stepText(result.settings.dt) << ": " << (result.refused ? "-" : cost) << ", " << shortFigure(row)
+                << stepText(result.settings.dt) << ": " << (result.refused ? "-" : cost) << ", " << shortFigure(row)
                 << "\n" << std::flush;
     }
     progress.update(n);

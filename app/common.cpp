@@ -26,16 +26,15 @@ namespace fs = std::filesystem;
 void SolverOptions::add(CLI::App& cmd) {
   for (const SettingSpec& spec : settingTable()) {
     const std::string flag = std::string("--") + spec.flag;
+    const std::string help = std::string(spec.help) + (spec.takes.all() ? "" : " [" + spec.takes.text() + "]") +
+                             (spec.resolved() ? "; default " + defaultsText(spec) : "");
     if (spec.kind == SettingKind::Flag) {
       auto& f = flags[spec.key];
-      cmd.add_flag(flag, f.first, spec.help);
+      cmd.add_flag(flag, f.first, help);
       cmd.add_flag("--no-" + std::string(spec.flag), f.second, std::string("Turn ") + flag + " off");
       continue;
     }
-    auto& v = values[spec.key];
-    std::string help = spec.help;
-    help += spec.kind == SettingKind::Choice ? "" : std::string("; ") + spec.expected();
-    cmd.add_option(flag, v, help);
+    cmd.add_option(flag, values[spec.key], help + (spec.kind == SettingKind::Choice ? "" : "; " + spec.expected()));
   }
 }
 
@@ -48,13 +47,13 @@ SolverOverrides SolverOptions::overrides() const {
       if (it == flags.end()) continue;
       const auto [on, off] = it->second;
       if (on && off) throw UsageError(flag + " and --no-" + spec.flag + " contradict each other");
-      if (on || off) spec.setFlag(o, on);
+      if (on || off) o.set(spec, on ? 1 : 0);
       continue;
     }
     const auto it = values.find(spec.key);
     if (it == values.end() || !it->second) continue;
     try {
-      spec.setText(o, *it->second);
+      o.setText(spec, *it->second);
     } catch (const std::invalid_argument& e) {
       throw UsageError(flag + ": " + e.what());
     }
@@ -76,49 +75,15 @@ CLI::Validator finiteIn(double lo, double hi) {
 }
 
 SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& cl) {
-  const SolverOverrides merged = scene.solver.withCommandLine(cl);
-  const Algorithm algo = merged.algorithm.value_or(Algorithm::A2);
-  if (!subSteps(algo) && cl.substeps && *cl.substeps != 1)
-    throw UsageError(std::string("--substeps: ") + algorithmName(algo) +
-                     " does not sub-step (the report's A1/A2 take one step of h); use --dt for a smaller step, "
-                     "or --algo a3|a4|a5|soft");
-  if (!havokScaled(algo)) {
-    if (cl.preset)
-      throw UsageError(std::string("--preset: presets are Havok's sub-stepping settings; use --algo a3|a4|a5 with it"));
-    if (cl.kappa || cl.tau)
-      throw UsageError(std::string("--kappa/--tau: ") + algorithmName(algo) + " has no κ or τ; use --algo a3|a4|a5");
-  }
-  SolverOverrides use = merged;
-  if (!cl.preset && cl.algorithm && merged.preset && !havokScaled(algo)) use.preset.reset();  // scene preset, a1/a2 asked
   try {
-    return resolve(use);
+    return resolveFor(scene.solver, cl);
   } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("solver settings (") + scene.file + " or the command line): " + e.what());
+    const std::string what = e.what();
+    const SettingSpec* s = findSetting(what.substr(0, what.find(':')));
+    // "--kappa: a2 does not use it (a3, a4, a5 do)": the option as it was typed.
+    if (s && cl.has(*s)) throw UsageError("--" + std::string(s->flag) + what.substr(what.find(':')));
+    throw UsageError("solver settings (" + scene.file + " or the command line): " + what);
   }
-}
-
-std::string describe(const SolverSettings& s) {
-  std::ostringstream o;
-  o << algorithmName(s.algorithm) << " (" << algorithmTitle(s.algorithm) << ") h=";
-  const double inv = 1.0 / s.dt;
-  if (std::abs(inv - std::round(inv)) < 1e-9)
-    o << "1/" << std::llround(inv);
-  else
-    o << s.dt;
-  switch (s.algorithm) {
-    case Algorithm::A1: break;
-    case Algorithm::A2: o << " iterations<=" << s.iterations << " ω=" << s.omega << " tol=" << s.tolerance; break;
-    case Algorithm::Soft:
-      o << " n=" << s.substeps << " m=" << s.iterations << " contact " << s.contactHertz << " Hz ζ=" << s.contactDamping
-        << " joints " << s.jointHertz << " Hz ζ=" << s.jointDamping;
-      break;
-    default: o << " n=" << s.substeps << " m=" << s.iterations << " κ=" << s.kappa << " τ=" << s.tau; break;
-  }
-  if (s.warmStart) o << " warm-start";
-  if (s.splitImpulse) o << " split-impulse";
-  if (s.blockSolve && havokScaled(s.algorithm)) o << " blocks";
-  if (s.contactBlocks) o << " contact-blocks";
-  return o.str();
 }
 
 Scene load(const std::string& path, const SceneLimits& lim) {

@@ -45,9 +45,6 @@ CLI::Validator finiteIn(double lo, double hi);
 // the algorithm's defaults. Throws UsageError.
 SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& commandLine);
 
-// One line describing the settings, e.g. "a5 (Havok stepping, actual) h=1/60 n=4 m=1 κ=1 τ=0.6".
-std::string describe(const SolverSettings& s);
-
 // Loads a scene, turning its errors into UsageError.
 Scene load(const std::string& path, const SceneLimits& lim = {});
 // --max-bodies N, the cap on a scene's bodies and joints.

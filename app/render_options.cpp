@@ -159,7 +159,7 @@ void RenderOptions::printHeader(const RenderSession& session) const {
   const Scene& s = session.scene();
   std::cout << "scene     " << s.file << " (" << s.model.dynamicCount() << " dynamic bodies, " << s.model.joints.size()
             << " joints)\n";
-  for (int i = 0; i < session.panelCount(); ++i) std::cout << "solver    " << describe(session.panel(i).settings()) << "\n";
+  for (int i = 0; i < session.panelCount(); ++i) std::cout << "solver    " << settingsLine(session.panel(i).settings()) << "\n";
 }
 
 void stopIfInterrupted() {

@@ -40,15 +40,4 @@ struct BulletSettings {
 };
 BulletSettings bulletSettings(const Method& m, const Scene& scene, std::optional<double> dt = std::nullopt);
 
-// Every setting a run used, by the table's keys (physics/settings.h), for records: numbers,
-// flags as booleans, choices as text. The Bullet peer's: dt, iterations, gyroscopic.
-struct SettingValue {
-  std::string key;
-  std::string text;  // as the table prints it ("0.85", "on", "implicit")
-};
-std::vector<SettingValue> settingValues(const Method& m, const SolverSettings& s);
-
-// "1/60" for 0.016666..., else the number: how time steps are printed.
-std::string stepText(double dt);
-
 }  // namespace substep::lab

@@ -1,6 +1,7 @@
 #include "lab/record.h"
 
 #include "lab/provenance.h"
+#include "physics/settings_json.h"
 
 #include <cmath>
 #include <filesystem>
@@ -14,17 +15,11 @@ using json = nlohmann::json;
 json number(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 json optional(const std::optional<double>& x) { return x ? number(*x) : json(nullptr); }
 
-json settingsJson(const Method& m, const SolverSettings& s) {
-  json j = json::object();
-  for (const SettingValue& v : settingValues(m, s)) {
-    const SettingSpec* spec = findSetting(v.key);
-    if (spec->kind == SettingKind::Flag)
-      j[v.key] = v.text == "on";
-    else if (spec->kind == SettingKind::Choice)
-      j[v.key] = v.text;
-    else
-      j[v.key] = spec->kind == SettingKind::Integer ? json(std::stoll(v.text)) : json(std::stod(v.text));
-  }
+// Every setting the run used (physics/settings_json.h); the Bullet peer's are the three it maps.
+json runSettingsJson(const Method& m, const SolverSettings& s) {
+  json j = substep::settingsJson(s);
+  if (m.isBullet())
+    j = {{"dt", s.dt}, {"iterations", s.iterations}, {"gyroscopic", s.gyroscopic == Gyroscopic::None ? "none" : "implicit"}};
   j["h"] = stepText(s.dt);
   return j;
 }
@@ -105,7 +100,7 @@ json recordJson(const Scene& scene, const RunResult& run, double seconds, int re
   j["method"] = run.method.text;
   j["family"] = run.method.family();
   j["engine"] = run.method.isBullet() ? "bullet" : "substep";
-  j["settings"] = settingsJson(run.method, run.settings);
+  j["settings"] = runSettingsJson(run.method, run.settings);
   j["seconds"] = seconds;
   j["steps"] = run.steps;
   j["steps_done"] = run.stepsDone;

@@ -170,7 +170,7 @@ ConvergedReference convergedReference(const Scene& scene, const SceneReference& 
   const std::vector<Method> m = parseMethods(ref.method);
   if (m.size() != 1 || m[0].isBullet())
     throw ReferenceError("reference \"" + ref.method + "\": expected one of substep's algorithms at a small h");
-  const SolverSettings coarse = methodSettings(m[0], scene, m[0].overrides.dt);
+  const SolverSettings coarse = methodSettings(m[0], scene, m[0].overrides.get(&SolverSettings::dt));
   SolverSettings fine = coarse;
   fine.dt = coarse.dt / 2;
   const std::string what = "the reference " + ref.method;

@@ -46,9 +46,7 @@ std::string hashText(const std::string& s) {
 }  // namespace
 
 double parseStep(const std::string& text) {
-  SolverOverrides o;
-  findSetting("dt")->setText(o, text);  // throws "expected a number in [1e-6, 1], got ..."
-  return *o.dt;
+  return findSetting("dt")->parse(text);  // throws "expected a number in [1e-6, 1], got ..."
 }
 
 SweepSpec readSweepSpec(const std::string& file) {
@@ -140,7 +138,7 @@ SweepPlan planSweep(const SweepSpec& spec, std::vector<Scene> scenes) {
         PlannedRun r;
         r.scene = s;
         r.method = m;
-        r.dt = m.overrides.dt ? std::nullopt : dt;  // a method that names its h keeps it
+        r.dt = m.overrides.get(&SolverSettings::dt) ? std::nullopt : dt;  // a method that names its h keeps it
         r.seconds = seconds;
         SolverSettings settings;
         try {

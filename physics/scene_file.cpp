@@ -2,6 +2,7 @@
 // its JSON path; unknown keys are errors because a misspelt key silently ignored is a scene that
 // quietly does something else.
 #include "physics/scene_file.h"
+#include "physics/settings_json.h"
 
 #include "physics/generators.h"
 #include "physics/mass.h"
@@ -299,14 +300,13 @@ void Reader::readSolver(const Obj& o, SolverOverrides& s) const {
         case SettingKind::Integer:
         case SettingKind::Real:
           if (!v.is_number()) fail(path, "expected " + spec.expected() + ", got " + Obj::typeName(v));
-          spec.setNumber(s, v.get<double>());
           break;
         case SettingKind::Flag:
           if (!v.is_boolean()) fail(path, "expected true or false, got " + Obj::typeName(v));
-          spec.setFlag(s, v.get<bool>());
           break;
-        case SettingKind::Choice: spec.setText(s, o.toString(v, path)); break;
+        case SettingKind::Choice: o.toString(v, path); break;
       }
+      s.set(spec, settingFromJson(spec, v));
     } catch (const std::invalid_argument& e) {
       fail(path, e.what());
     }
@@ -377,7 +377,7 @@ void Reader::readCriteria(const Obj& o, Scene& scene) const {
         const std::vector<MethodSpec> m = expandMethodSpec(ref.method);
         if (m.size() != 1) fail(r.at("method"), "expected one method, got a grid of " + std::to_string(m.size()));
         if (!m[0].peer.empty()) fail(r.at("method"), "a reference is one of substep's algorithms (a1 or a3 at a small h), not the " + m[0].peer + " peer");
-        if (!m[0].overrides.dt) fail(r.at("method"), "give the reference's time step, e.g. \"a1:h=1/960\"");
+        if (!m[0].overrides.get(&SolverSettings::dt)) fail(r.at("method"), "give the reference's time step, e.g. \"a1:h=1/960\"");
       } catch (const std::invalid_argument& e) {
         fail(r.at("method"), e.what());
       }
@@ -391,7 +391,7 @@ void Reader::readCriteria(const Obj& o, Scene& scene) const {
   if (o.has("with")) {
     const Obj w(*this, o.need("with"), o.at("with"));
     readSolver(w, c.with);
-    if (c.with.algorithm || c.with.preset)
+    if (c.with.algorithm() || c.with.preset())
       fail(w.path(), "\"with\" holds settings every method runs with; the algorithm and presets are the method's");
   }
   if (o.has("pass")) {

@@ -1,8 +1,11 @@
 #include "physics/settings.h"
 
+#include "physics/utf8.h"
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <stdexcept>
 
 namespace substep {
@@ -36,6 +39,13 @@ std::string numberText(double x) {
   return t;
 }
 
+std::string stepText(double dt) {
+  // A fraction only when it reads back as the same double, so that a line can be typed again.
+  const double n = std::round(1.0 / dt);
+  if (n >= 1 && n < 1e9 && 1.0 / n == dt) return "1/" + std::to_string(std::llround(n));
+  return numberText(dt);
+}
+
 const char* algorithmName(Algorithm a) {
   switch (a) {
     case Algorithm::A1: return "a1";
@@ -61,7 +71,7 @@ const char* algorithmTitle(Algorithm a) {
 }
 
 std::optional<Algorithm> parseAlgorithm(const std::string& s) {
-  for (Algorithm a : {Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5, Algorithm::Soft})
+  for (Algorithm a : kAlgorithms)
     if (s == algorithmName(a)) return a;
   return std::nullopt;
 }
@@ -69,11 +79,28 @@ std::optional<Algorithm> parseAlgorithm(const std::string& s) {
 bool havokScaled(Algorithm a) { return a == Algorithm::A3 || a == Algorithm::A4 || a == Algorithm::A5; }
 bool subSteps(Algorithm a) { return havokScaled(a) || a == Algorithm::Soft; }
 
+std::string AlgorithmSet::text() const {
+  std::string s;
+  for (Algorithm a : kAlgorithms)
+    if (has(a)) s += (s.empty() ? "" : ", ") + std::string(algorithmName(a));
+  return s;
+}
+
+const char* originName(SettingOrigin o) {
+  switch (o) {
+    case SettingOrigin::Report: return "report";
+    case SettingOrigin::Extension: return "extension";
+    case SettingOrigin::Limit: return "limit";
+  }
+  return "?";
+}
+
 // --- the table -------------------------------------------------------------------------------
 
 namespace {
 
-using O = SolverOverrides;
+using S = SolverSettings;
+using A = Algorithm;
 
 const std::vector<std::string> kPresets = {"2-soft", "2-medium", "2-hard", "4-soft", "4-medium",
                                            "4-hard", "8-soft", "8-medium", "8-hard"};
@@ -84,81 +111,118 @@ std::string listOf(const std::vector<std::string>& v) {
   return s;
 }
 
+constexpr AlgorithmSet kEvery{A::A1, A::A2, A::A3, A::A4, A::A5, A::Soft};
+constexpr AlgorithmSet kIterative{A::A2, A::A3, A::A4, A::A5, A::Soft};
+constexpr AlgorithmSet kHavok{A::A3, A::A4, A::A5};
+constexpr AlgorithmSet kSubStepping{A::A3, A::A4, A::A5, A::Soft};
+constexpr AlgorithmSet kSolved{A::A2, A::A3, A::A4, A::A5};  // rows and blocks by Gauss-Seidel
+constexpr AlgorithmSet kNone{};
+
+using Defaults = std::array<double, kAlgorithmCount>;
+constexpr Defaults same(double x) { return {x, x, x, x, x, x}; }
+
 // The table. Ranges are what the algorithms can take, not what is sensible for every scene:
-// κ = 5 is a poor choice, not an input error.
+// κ = 5 is a poor choice, not an input error. Defaults are given for a1, a2, a3, a4, a5, soft:
+// A1/A2 as the report has them (ω 1, 10 iterations, rows one by one), A3-A5 Havok's (n 4, m 1,
+// τ 0.6, κ 1, stable joints as blocks), the soft step Box2D v3's (4 sub-steps of one solve and one
+// relax sweep, warm started). An algorithm that does not read a setting keeps a neutral value.
 std::vector<SettingSpec> makeTable() {
   using K = SettingKind;
-  return {
-      {"algorithm", "algo", "algo", K::Choice, {0, 0}, {"a1", "a2", "a3", "a4", "a5", "soft"},
+  using O = SettingOrigin;
+  std::vector<SettingSpec> t = {
+      //  key, alias, flag, kind, range, choices, takes, origin, line, brief, help, field, defaults, control
+      {"algorithm", "algo", "algo", K::Choice, {0, 0}, {"a1", "a2", "a3", "a4", "a5", "soft"}, kEvery, O::Report, "",
+       kNone,
        "Algorithm: the report's a1 (direct), a2 (PGS/PSOR), a3, a4, a5 (Havok sub-stepping); soft (Box2D v3's "
        "soft step, an extension)",
-       &O::algorithm},
-      {"dt", "h", "dt", K::Real, {1e-6, 1}, {}, "Time step h [s] (default 1/60)", &O::dt},
-      {"substeps", "n", "substeps", K::Integer, {1, 1000}, {}, "Sub-steps n per step (a3-a5, soft; default 4)",
-       &O::substeps},
-      {"iterations", "m", "iterations", K::Integer, {1, 100000}, {},
-       "a2: iteration cap (default 10); a3-a5: micro-iterations m per sub-step; soft: solve and relax sweeps per "
-       "sub-step (default 1)",
-       &O::iterations},
-      {"omega", "ω", "omega", K::Real, {0, 2, true, true}, {}, "a2: over-relaxation ω of PSOR (default 1)", &O::omega},
-      {"tolerance", "tol", "tolerance", K::Real, {0, 1e3}, {},
-       "a2: stop iterating when no row's velocity changes more [m/s] (default 1e-6)", &O::tolerance},
-      {"kappa", "κ", "kappa", K::Real, {0, 10, true}, {}, "κ of a3-a5 (default 1)", &O::kappa},
-      {"tau", "τ", "tau", K::Real, {0, 10}, {}, "τ of a3-a5 (default 0.6)", &O::tau},
-      {"slop", "", "slop", K::Real, {0, 1}, {}, "Allowed penetration, the report's hi [m] (default 0.001)", &O::slop},
-      {"preset", "", "preset", K::Choice, {0, 0}, kPresets,
-       "Havok's preset for a3-a5: 2, 4 or 8 sub-steps, soft, medium or hard (sets n, m, κ, τ)", &O::preset},
-      {"warm_start", "warm", "warm-start", K::Flag, {0, 0}, {},
-       "Start each (sub-)step from the previous one's impulses (an extension; off in the report)", &O::warmStart},
-      {"block_solve", "block", "block-solve", K::Flag, {0, 0}, {},
-       "Solve unbounded ('stable') joint rows as blocks, as the report's a3-a5 do (a3-a5: on)", &O::blockSolve},
-      {"contact_blocks", "cblock", "contact-blocks", K::Flag, {0, 0}, {},
+       &S::algorithm, same(1), {}},
+      {"dt", "h", "dt", K::Real, {1e-6, 1}, {}, kEvery, O::Report, "h=%s", kNone, "Time step h [s]", &S::dt,
+       same(1.0 / 60), {true, "h [s]", 1.0 / 480, 1.0 / 15, 0.0001}},
+      {"substeps", "n", "substeps", K::Integer, {1, 1000}, {}, kSubStepping, O::Report, "n=%s", kSubStepping,
+       "Sub-steps n per step", &S::substeps, {1, 1, 4, 4, 4, 4}, {true, "n (sub-steps)", 1, 32, 1}},
+      {"iterations", "m", "iterations", K::Integer, {1, 100000}, {}, kIterative, O::Report, "m=%s", kSolved,
+       "a2: iteration cap; a3-a5: micro-iterations m per sub-step; soft: solve and relax sweeps per sub-step",
+       &S::iterations, {10, 10, 1, 1, 1, 1}, {true, "m (iterations)", 1, 100, 1}},
+      {"omega", "ω", "omega", K::Real, {0, 2, true, true}, {}, {A::A2}, O::Report, "ω=%s", kNone,
+       "a2: over-relaxation ω of PSOR", &S::omega, same(1), {true, "ω", 0.05, 1.95, 0.05}},
+      {"tolerance", "tol", "tolerance", K::Real, {0, 1e3}, {}, {A::A2}, O::Report, "tol=%s", kNone,
+       "a2: stop iterating when no row's velocity changes more [m/s] (the report's σw)", &S::tolerance, same(1e-6),
+       {}},
+      {"kappa", "κ", "kappa", K::Real, {0, 10, true}, {}, kHavok, O::Report, "κ=%s", kHavok, "κ of a3-a5", &S::kappa,
+       same(1), {true, "κ", 0.05, 2, 0.05}},
+      {"tau", "τ", "tau", K::Real, {0, 10}, {}, kHavok, O::Report, "τ=%s", kHavok,
+       "τ of a3-a5: the share of the position error corrected per sub-step", &S::tau, {1, 1, 0.6, 0.6, 0.6, 1},
+       {true, "τ", 0, 1.5, 0.05}},
+      {"slop", "", "slop", K::Real, {0, 1}, {}, kEvery, O::Report, "slop=%s", kNone,
+       "Allowed penetration, the report's hi [m]", &S::slop, same(0.001), {}},
+      {"preset", "", "preset", K::Choice, {0, 0}, kPresets, kHavok, O::Report, "", kNone,
+       "Havok's preset for a3-a5: 2, 4 or 8 sub-steps, soft, medium or hard (sets n, m, κ, τ)", {}, same(0), {}},
+      {"warm_start", "warm", "warm-start", K::Flag, {0, 0}, {}, kIterative, O::Extension, "warm", kNone,
+       "Start each (sub-)step from the previous one's impulses (an extension; off in the report)", &S::warmStart,
+       {0, 0, 0, 0, 0, 1}, {true, "warm start", 0, 0, 0}},
+      {"block_solve", "block", "block-solve", K::Flag, {0, 0}, {}, kSolved, O::Report, "blocks", kNone,
+       "Solve unbounded ('stable') joint rows as blocks, as the report's a3-a5 do", &S::blockSolve,
+       {0, 0, 1, 1, 1, 0}, {}},
+      {"contact_blocks", "cblock", "contact-blocks", K::Flag, {0, 0}, {}, kSolved, O::Extension, "cblock", kNone,
        "Solve each manifold's normal rows together as a small LCP (an extension; off in the report's presets)",
-       &O::contactBlocks},
-      {"split_impulse", "split", "split-impulse", K::Flag, {0, 0}, {},
+       &S::contactBlocks, same(0), {}},
+      {"split_impulse", "split", "split-impulse", K::Flag, {0, 0}, {}, kSolved, O::Extension, "split", kNone,
        "Correct contact penetration with pseudo-velocities, apart from the velocity solve (an extension)",
-       &O::splitImpulse},
-      {"motor_unscaled", "", "motor-unscaled", K::Flag, {0, 0}, {},
-       "Solve motors with κ = τ = 1 so they reach their speed (an extension, on; off: the report's κ and τ on "
-       "every row)",
-       &O::motorUnscaled},
-      {"friction_exempt", "", "friction-exempt", K::Flag, {0, 0}, {},
-       "Keep friction rows out of a4/a5's bias update rule (an extension, on; off: the report's rule on every row)",
-       &O::frictionExempt},
-      {"speculative", "spec", "speculative", K::Flag, {0, 0}, {},
+       &S::splitImpulse, same(0), {}},
+      {"motor_unscaled", "", "motor-unscaled", K::Flag, {0, 0}, {}, kHavok, O::Extension, "motor-unscaled", kNone,
+       "Solve motors with κ = τ = 1 so they reach their speed (an extension; off: the report's κ and τ on every "
+       "row)",
+       &S::motorUnscaled, same(1), {}},
+      {"friction_exempt", "", "friction-exempt", K::Flag, {0, 0}, {}, {A::A4, A::A5, A::Soft}, O::Extension,
+       "friction-exempt", kNone,
+       "Keep friction rows out of the bias update rule of a4, a5 and the soft step (an extension; off: the "
+       "report's rule on every row)",
+       &S::frictionExempt, same(1), {}},
+      {"speculative", "spec", "speculative", K::Flag, {0, 0}, {}, kEvery, O::Extension, "speculative", kNone,
        "Contact points within a margin before touching, whose gap closes at full speed, not scaled by τ (an "
-       "extension, on; the report has none)",
-       &O::speculative},
-      {"restitution", "", "restitution", K::Flag, {0, 0}, {},
-       "Apply the bodies' restitution after the velocity solve (an extension, on; the report has none)",
-       &O::restitution},
-      {"islands", "", "islands", K::Flag, {0, 0}, {},
+       "extension; the report has none)",
+       &S::speculative, same(1), {}},
+      {"restitution", "", "restitution", K::Flag, {0, 0}, {}, kEvery, O::Extension, "restitution", kNone,
+       "Apply the bodies' restitution after the velocity solve (an extension; the report has none)",
+       &S::restitution, same(1), {}},
+      {"islands", "", "islands", K::Flag, {0, 0}, {}, {A::A5}, O::Extension, "islands", kNone,
        "a5: solve each island (bodies joined by contacts and joints) through all its sub-steps before the next, "
-       "while its rows are in cache; the same numbers as all at once (on)",
-       &O::islands},
-      {"restitution_threshold", "", "restitution-threshold", K::Real, {0, 100}, {},
-       "Approach speed below which contacts do not bounce [m/s] (default 1)", &O::restitutionThreshold},
-      {"jacobians", "", "jacobians", K::Choice, {0, 0}, {"joints", "stable"},
-       "a5: recompute every joint's Jacobian between sub-steps (joints, an extension, the default) or only the "
-       "'stable' rows' while micro-iterating (stable, the report's IV.4.1)",
-       &O::jacobians},
-      {"gyroscopic", "gyro", "gyroscopic", K::Choice, {0, 0}, {"none", "explicit", "implicit"},
-       "The gyroscopic term ω × Iω (beyond the report, which has none): none (the default), explicit, or implicit "
-       "(one Newton step on the body-frame Euler equation)",
-       &O::gyroscopic},
-      {"contact_hertz", "", "contact-hertz", K::Real, {0.01, 1e4}, {},
-       "soft: contact stiffness as a frequency [Hz] (default 30, at most a quarter of the sub-step rate)",
-       &O::contactHertz},
-      {"contact_damping", "", "contact-damping", K::Real, {0, 1e3}, {}, "soft: contact damping ratio ζ (default 10)",
-       &O::contactDamping},
-      {"joint_hertz", "", "joint-hertz", K::Real, {0.01, 1e4}, {},
-       "soft: joint stiffness as a frequency [Hz] (default 60, at most a quarter of the sub-step rate)",
-       &O::jointHertz},
-      {"joint_damping", "", "joint-damping", K::Real, {0, 1e3}, {}, "soft: joint damping ratio ζ (default 2)",
-       &O::jointDamping},
-      {"push_out", "", "push-out", K::Real, {0, 1e3}, {},
-       "soft: largest speed a contact pushes penetrating bodies apart [m/s] (default 3)", &O::pushOut},
+       "while its rows are in cache; the same numbers as all at once",
+       &S::islands, same(1), {}},
+      {"restitution_threshold", "", "restitution-threshold", K::Real, {0, 100}, {}, kEvery, O::Extension,
+       "bounce>=%s m/s", kNone, "Approach speed below which contacts do not bounce [m/s]",
+       &S::restitutionThreshold, same(1), {}},
+      {"jacobians", "", "jacobians", K::Choice, {0, 0}, {"joints", "stable"}, {A::A5}, O::Report, "jacobians=%s",
+       kNone,
+       "a5: recompute every joint's Jacobian between sub-steps (joints, an extension) or only the 'stable' rows' "
+       "while micro-iterating (stable, the report's IV.4.1)",
+       &S::jacobians, same(0), {}},
+      {"gyroscopic", "gyro", "gyroscopic", K::Choice, {0, 0}, {"none", "explicit", "implicit"}, kEvery,
+       O::Extension, "gyro=%s", kNone,
+       "The gyroscopic term ω × Iω (beyond the report, which has none): none, explicit, or implicit (one Newton "
+       "step on the body-frame Euler equation)",
+       &S::gyroscopic, same(0), {}},
+      {"contact_hertz", "", "contact-hertz", K::Real, {0.01, 1e4}, {}, {A::Soft}, O::Extension, "contact %s Hz",
+       {A::Soft}, "soft: contact stiffness as a frequency [Hz] (at most a quarter of the sub-step rate)",
+       &S::contactHertz, same(30), {}},
+      {"contact_damping", "", "contact-damping", K::Real, {0, 1e3}, {}, {A::Soft}, O::Extension, "ζ=%s", kNone,
+       "soft: contact damping ratio ζ", &S::contactDamping, same(10), {}},
+      {"joint_hertz", "", "joint-hertz", K::Real, {0.01, 1e4}, {}, {A::Soft}, O::Extension, "joint %s Hz", kNone,
+       "soft: joint stiffness as a frequency [Hz] (at most a quarter of the sub-step rate)", &S::jointHertz,
+       same(60), {}},
+      {"joint_damping", "", "joint-damping", K::Real, {0, 1e3}, {}, {A::Soft}, O::Extension, "ζ=%s", kNone,
+       "soft: joint damping ratio ζ", &S::jointDamping, same(2), {}},
+      {"push_out", "", "push-out", K::Real, {0, 1e3}, {}, {A::Soft}, O::Extension, "push-out %s m/s", kNone,
+       "soft: largest speed a contact pushes penetrating bodies apart [m/s]", &S::pushOut, same(3), {}},
+      {"direct_max_rows", "", "direct-max-rows", K::Integer, {1, 20000}, {}, {A::A1}, O::Limit, "rows<=%s", kNone,
+       "a1: the largest MLCP it forms as a dense matrix [rows]; larger scenes are refused", &S::directMaxRows,
+       same(1500), {}},
+      {"direct_work_budget", "", "direct-work-budget", K::Real, {1e3, 1e14}, {}, {A::A1}, O::Limit, "budget=%s flop",
+       kNone, "a1: floating-point operations its direct solvers may spend on one step (about 3 s at 2e10)",
+       &S::directWorkBudget, same(2e10), {}},
   };
+  for (size_t i = 0; i < t.size(); ++i) t[i].index = i;
+  return t;
 }
 
 template <class... F>
@@ -175,8 +239,7 @@ bool parseFlag(const std::string& v, bool& out) {
 }
 
 std::string quoted(const std::string& s) {
-  std::string q = s.size() > limits::kMaxMessageValue ? s.substr(0, limits::kMaxMessageValue) + "..." : s;
-  return "\"" + q + "\"";
+  return "\"" + messageValue(s) + "\"";
 }
 
 }  // namespace
@@ -190,6 +253,12 @@ const SettingSpec* findSetting(const std::string& name) {
   for (const SettingSpec& s : settingTable())
     if (name == s.key || (s.alias[0] && name == s.alias) || name == s.flag) return &s;
   return nullptr;
+}
+
+const SettingSpec& settingOf(const SettingField& field) {
+  for (const SettingSpec& s : settingTable())
+    if (s.field == field) return s;
+  throw std::logic_error("a SolverSettings field without a row in the settings table");
 }
 
 std::string settingKeys() {
@@ -207,6 +276,40 @@ std::string settingKeys() {
   return s;
 }
 
+std::string defaultsText(const SettingSpec& s) {
+  if (!s.resolved()) return "none";
+  // The most common default among the algorithms that read it, then the others.
+  std::map<double, std::vector<std::string>> by;
+  for (Algorithm a : kAlgorithms)
+    if (s.takes.has(a)) by[s.defaultFor(a)].push_back(algorithmName(a));
+  auto common = by.begin();
+  for (auto it = by.begin(); it != by.end(); ++it)
+    if (it->second.size() > common->second.size()) common = it;
+  auto text = [&](double v) { return std::string(s.key) == "dt" ? stepText(v) : s.text(v); };
+  std::string t = text(common->first), rest;
+  for (const auto& [v, algos] : by)
+    if (v != common->first) rest += (rest.empty() ? "" : "; ") + listOf(algos) + ": " + text(v);
+  return rest.empty() ? t : t + " (" + rest + ")";
+}
+
+std::string flagsText(const SolverOverrides& o) {
+  std::string line;
+  for (const SettingSpec& spec : settingTable()) {
+    if (!o.has(spec)) continue;
+    const double v = *o.value(spec);
+    if (spec.kind == SettingKind::Flag)
+      line += std::string(" --") + (v != 0 ? "" : "no-") + spec.flag;
+    else
+      line += std::string(" --") + spec.flag + " " + (std::string(spec.key) == "dt" ? stepText(v) : spec.text(v));
+  }
+  return line;
+}
+
+SolverSettings::SolverSettings() {
+  for (const SettingSpec& s : settingTable())
+    if (s.resolved()) s.put(*this, s.defaultFor(Algorithm::A2));
+}
+
 std::string SettingSpec::expected() const {
   switch (kind) {
     case SettingKind::Integer: return range.expected(true);
@@ -217,47 +320,15 @@ std::string SettingSpec::expected() const {
   return "";
 }
 
-bool SettingSpec::isSet(const SolverOverrides& o) const {
-  return std::visit([&](auto m) { return (o.*m).has_value(); }, field);
+double SettingSpec::check(double x) const {
+  const bool ok = kind == SettingKind::Flag     ? (x == 0 || x == 1)
+                  : kind == SettingKind::Choice ? (x >= 0 && x < static_cast<double>(choices.size()) && x == std::floor(x))
+                                                : range.contains(x) && (kind != SettingKind::Integer || x == std::floor(x));
+  if (!ok) throw std::invalid_argument("expected " + expected() + ", got " + numberText(x));
+  return x;
 }
 
-std::string SettingSpec::valueText(const SolverOverrides& o) const {
-  return std::visit(Overloaded{[&](std::optional<Algorithm> O::*m) {
-                                 return (o.*m) ? std::string(algorithmName(*(o.*m))) : std::string();
-                               },
-                               [&](std::optional<int> O::*m) { return (o.*m) ? std::to_string(*(o.*m)) : std::string(); },
-                               [&](std::optional<double> O::*m) { return (o.*m) ? numberText(*(o.*m)) : std::string(); },
-                               [&](std::optional<bool> O::*m) {
-                                 return (o.*m) ? std::string(*(o.*m) ? "on" : "off") : std::string();
-                               },
-                               [&](std::optional<std::string> O::*m) { return (o.*m).value_or(""); }},
-                    field);
-}
-
-void SettingSpec::copy(const SolverOverrides& from, SolverOverrides& to) const {
-  std::visit([&](auto m) { to.*m = from.*m; }, field);
-}
-
-void SettingSpec::clear(SolverOverrides& o) const {
-  std::visit([&](auto m) { (o.*m).reset(); }, field);
-}
-
-void SettingSpec::setNumber(SolverOverrides& o, double x) const {
-  const bool integer = kind == SettingKind::Integer;
-  if ((kind != SettingKind::Integer && kind != SettingKind::Real) || !range.contains(x) ||
-      (integer && x != std::floor(x)))
-    throw std::invalid_argument("expected " + expected() + ", got " + numberText(x));
-  std::visit(Overloaded{[&](std::optional<int> O::*m) { o.*m = static_cast<int>(x); },
-                        [&](std::optional<double> O::*m) { o.*m = x; }, [](auto) {}},
-             field);
-}
-
-void SettingSpec::setFlag(SolverOverrides& o, bool b) const {
-  if (kind != SettingKind::Flag) throw std::invalid_argument("expected " + expected() + ", got " + (b ? "true" : "false"));
-  std::visit(Overloaded{[&](std::optional<bool> O::*m) { o.*m = b; }, [](auto) {}}, field);
-}
-
-void SettingSpec::setText(SolverOverrides& o, const std::string& text) const {
+double SettingSpec::parse(const std::string& text) const {
   const std::invalid_argument bad("expected " + expected() + ", got " + quoted(text));
   switch (kind) {
     case SettingKind::Integer:
@@ -283,52 +354,122 @@ void SettingSpec::setText(SolverOverrides& o, const std::string& text) const {
         x = decimal(text);
       }
       try {
-        setNumber(o, x);
+        return check(x);
       } catch (const std::invalid_argument&) {
         throw bad;  // the value as typed
       }
-      return;
     }
     case SettingKind::Flag: {
       bool b = false;
       if (!parseFlag(text, b)) throw bad;
-      setFlag(o, b);
-      return;
+      return b ? 1 : 0;
     }
-    case SettingKind::Choice: {
-      bool known = false;
-      for (const std::string& c : choices) known = known || c == text;
-      if (!known) throw bad;
-      std::visit(Overloaded{[&](std::optional<Algorithm> O::*m) { o.*m = parseAlgorithm(text); },
-                            [&](std::optional<std::string> O::*m) { o.*m = text; }, [](auto) {}},
-                 field);
-      return;
-    }
+    case SettingKind::Choice:
+      for (size_t i = 0; i < choices.size(); ++i)
+        if (choices[i] == text) return static_cast<double>(i);
+      throw bad;
   }
+  throw bad;
 }
+
+std::string SettingSpec::text(double v) const {
+  switch (kind) {
+    case SettingKind::Integer: return std::to_string(static_cast<long long>(v));
+    case SettingKind::Real: return numberText(v);
+    case SettingKind::Flag: return v != 0 ? "on" : "off";
+    case SettingKind::Choice: return choices.at(static_cast<size_t>(v));
+  }
+  return "";
+}
+
+double SettingSpec::get(const SolverSettings& s) const {
+  return std::visit(Overloaded{[](std::monostate) { return 0.0; },
+                               [&](auto m) { return SolverOverrides::encode(s.*m); }},
+                    field);
+}
+
+void SettingSpec::put(SolverSettings& s, double v) const {
+  std::visit(Overloaded{[](std::monostate) {},
+                        [&](auto m) {
+                          using T = std::remove_reference_t<decltype(s.*m)>;
+                          s.*m = SolverOverrides::decode<T>(v);
+                        }},
+             field);
+}
+
+// --- given settings --------------------------------------------------------------------------
+
+std::optional<double> SolverOverrides::value(const SettingSpec& s) const {
+  if (!has(s)) return std::nullopt;
+  return v_[s.index];
+}
+
+void SolverOverrides::set(const SettingSpec& s, double value) {
+  v_[s.index] = s.check(value);
+  set_.set(s.index);
+}
+
+std::string SolverOverrides::text(const SettingSpec& s) const { return has(s) ? s.text(v_[s.index]) : std::string(); }
+
+std::optional<std::string> SolverOverrides::preset() const {
+  const SettingSpec& s = *findSetting("preset");
+  if (!has(s)) return std::nullopt;
+  return s.text(v_[s.index]);
+}
+
+void SolverOverrides::setPreset(const std::string& name) { setText(*findSetting("preset"), name); }
 
 SolverOverrides SolverOverrides::merged(const SolverOverrides& later) const {
   SolverOverrides r = *this;
   for (const SettingSpec& s : settingTable())
-    if (s.isSet(later)) s.copy(later, r);
+    if (later.has(s)) r.set(s, later.v_[s.index]);
   return r;
 }
 
 SolverOverrides SolverOverrides::withCommandLine(const SolverOverrides& commandLine) const {
   SolverOverrides scene = *this;
-  if (commandLine.preset) {  // the preset replaces what it sets, where the scene set it
-    scene.substeps.reset();
-    scene.iterations.reset();
-    scene.kappa.reset();
-    scene.tau.reset();
+  if (commandLine.preset()) {  // the preset replaces what it sets, where the scene set it
+    scene.clear(&SolverSettings::substeps);
+    scene.clear(&SolverSettings::iterations);
+    scene.clear(&SolverSettings::kappa);
+    scene.clear(&SolverSettings::tau);
   }
   return scene.merged(commandLine);
 }
 
-bool SolverOverrides::empty() const {
-  for (const SettingSpec& s : settingTable())
-    if (s.isSet(*this)) return false;
+std::string SolverOverrides::specText() const {
+  const std::optional<Algorithm> a = algorithm();
+  std::string s = a ? algorithmName(*a) : "scene";
+  for (const SettingSpec& spec : settingTable()) {
+    if (std::string(spec.key) == "algorithm" || !has(spec)) continue;
+    const std::string name = spec.alias[0] && static_cast<unsigned char>(spec.alias[0]) < 0x80 ? spec.alias : spec.key;
+    s += ":" + name + "=" + text(spec);
+  }
+  return s;
+}
+
+bool SolverOverrides::operator==(const SolverOverrides& o) const {
+  if (set_ != o.set_) return false;
+  for (size_t i = 0; i < kMaxSettings; ++i)
+    if (set_[i] && v_[i] != o.v_[i]) return false;
   return true;
+}
+
+void checkTakes(const SettingSpec& s, Algorithm a) {
+  if (s.takes.has(a)) return;
+  const std::string name = algorithmName(a);
+  if (std::string(s.key) == "preset")
+    throw std::invalid_argument("preset: presets set Havok's sub-steps, κ and τ, which " + name +
+                                " does not use; choose a3, a4 or a5");
+  const std::string others = s.takes.text();
+  throw std::invalid_argument(std::string(s.key) + ": " + name + " does not use it (" + others +
+                              (others.find(',') == std::string::npos ? " does" : " do") +
+                              "); leave it out, or choose that algorithm");
+}
+
+void checkTaken(const SolverOverrides& given, Algorithm a) {
+  for (const SettingSpec& s : settingTable())
+    if (given.has(s)) checkTakes(s, a);
 }
 
 // --- method specs ----------------------------------------------------------------------------
@@ -386,14 +527,20 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
     if (bullet && k != "dt" && k != "iterations" && k != "gyroscopic")
       throw std::invalid_argument(quoted(spec) + ": the Bullet peer takes h, it and gyro; " + key +
                                   " is a setting of substep's algorithms");
+    if (a && !s->takes.has(*a)) {
+      try {
+        checkTakes(*s, *a);
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(quoted(spec) + ": " + e.what());
+      }
+    }
     for (const Axis& x : axes)
       if (x.setting == s) throw std::invalid_argument(quoted(spec) + ": " + key + " is given twice");
     Axis axis{s, key, {}};
     for (const std::string& v : split(kv.substr(eq + 1), "|")) {
       const std::string value = trim(v);
-      SolverOverrides probe;
       try {
-        s->setText(probe, value);
+        s->parse(value);
       } catch (const std::invalid_argument& e) {
         throw std::invalid_argument(quoted(spec) + ": " + key + ": " + e.what());
       }
@@ -408,10 +555,10 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
   for (size_t c = 0; c < combinations; ++c) {
     MethodSpec m;
     m.text = algo;
-    m.overrides.algorithm = a;
+    if (a) m.overrides.set(&SolverSettings::algorithm, *a);
     if (bullet) m.peer = kBulletPeer;
     for (size_t k = 0; k < axes.size(); ++k) {
-      axes[k].setting->setText(m.overrides, axes[k].values[at[k]]);
+      m.overrides.setText(*axes[k].setting, axes[k].values[at[k]]);
       m.text += ":" + axes[k].key + "=" + axes[k].values[at[k]];
     }
     out.push_back(m);
@@ -436,18 +583,11 @@ std::vector<MethodSpec> parseMethodSpecs(const std::string& list) {
 
 namespace {
 
-[[noreturn]] void bad(const std::string& field, const std::string& what) {
-  throw std::invalid_argument(field + ": " + what);
-}
-
 // Havok's presets (docs/algorithms.md): 2, 4 or 8 sub-steps, soft/medium/hard.
 void applyPreset(const std::string& name, SolverSettings& s) {
   const auto dash = name.find('-');
-  const std::string count = name.substr(0, dash);
-  const std::string kind = dash == std::string::npos ? "" : name.substr(dash + 1);
-  if ((count != "2" && count != "4" && count != "8") || (kind != "soft" && kind != "medium" && kind != "hard"))
-    bad("preset", "expected one of " + listOf(kPresets) + "; got " + quoted(name));
-  s.substeps = std::stoi(count);
+  s.substeps = std::stoi(name.substr(0, dash));
+  const std::string kind = name.substr(dash + 1);
   if (kind == "soft") { s.tau = 0.3; s.kappa = 0.9; }
   if (kind == "medium") { s.tau = 0.6; s.kappa = 1.0; }
   if (kind == "hard") { s.tau = 0.9; s.kappa = 1.1; }
@@ -457,74 +597,62 @@ void applyPreset(const std::string& name, SolverSettings& s) {
 }  // namespace
 
 SolverSettings resolve(const SolverOverrides& o) {
-  // Every value given is checked against the table, whoever built the overrides.
-  for (const SettingSpec& spec : settingTable()) {
-    if (!spec.isSet(o) || spec.kind == SettingKind::Flag) continue;
-    SolverOverrides probe;
-    try {
-      spec.setText(probe, spec.valueText(o));
-    } catch (const std::invalid_argument& e) {
-      bad(spec.key, e.what());
-    }
-  }
+  const Algorithm a = o.algorithm().value_or(Algorithm::A2);
   SolverSettings s;
-  s.algorithm = o.algorithm.value_or(Algorithm::A2);
-  const bool sub = havokScaled(s.algorithm);
-  if (s.algorithm == Algorithm::Soft) {
-    // Box2D v3's defaults: 4 sub-steps of one solve and one relax sweep, warm started.
-    s.substeps = 4;
-    s.iterations = 1;
-    s.tau = 1.0;
-    s.kappa = 1.0;
-    s.warmStart = true;
-  } else if (sub) {
-    // Havok's defaults: 4 sub-steps, 1 micro-iteration, medium stiffness, stable constraints as blocks.
-    s.substeps = 4;
-    s.iterations = 1;
-    s.tau = 0.6;
-    s.kappa = 1.0;
-    s.blockSolve = true;
-  } else {
-    s.substeps = 1;
-    s.iterations = 10;
-    s.tau = 1.0;
-    s.kappa = 1.0;
-    s.blockSolve = false;
+  for (const SettingSpec& spec : settingTable())
+    if (spec.resolved()) spec.put(s, spec.defaultFor(a));
+  s.algorithm = a;
+  if (const std::optional<std::string> preset = o.preset()) {
+    if (!havokScaled(a))
+      throw std::invalid_argument(std::string("preset: presets set sub-steps, κ and τ, which ") + algorithmName(a) +
+                                  " does not use; choose --algo a3, a4 or a5");
+    applyPreset(*preset, s);
   }
-  if (o.preset) {
-    if (!sub) bad("preset", std::string("presets set sub-steps, κ and τ, which ") + algorithmName(s.algorithm) +
-                                " does not use; choose --algo a3, a4 or a5");
-    applyPreset(*o.preset, s);
-  }
-  if (o.dt) s.dt = *o.dt;
-  if (o.substeps && subSteps(s.algorithm)) s.substeps = *o.substeps;
-  if (o.iterations) s.iterations = *o.iterations;
-  if (o.omega) s.omega = *o.omega;
-  if (o.tolerance) s.tolerance = *o.tolerance;
-  if (o.kappa && sub) s.kappa = *o.kappa;
-  if (o.tau && sub) s.tau = *o.tau;
-  if (o.slop) s.slop = *o.slop;
-  if (o.warmStart) s.warmStart = *o.warmStart;
-  if (o.blockSolve) s.blockSolve = *o.blockSolve;
-  if (o.splitImpulse) s.splitImpulse = *o.splitImpulse;
-  if (o.contactBlocks) s.contactBlocks = *o.contactBlocks;
-  if (o.motorUnscaled) s.motorUnscaled = *o.motorUnscaled;
-  if (o.frictionExempt) s.frictionExempt = *o.frictionExempt;
-  if (o.speculative) s.speculative = *o.speculative;
-  if (o.restitution) s.restitution = *o.restitution;
-  if (o.islands) s.islands = *o.islands;
-  if (o.restitutionThreshold) s.restitutionThreshold = *o.restitutionThreshold;
-  if (o.jacobians) s.jacobians = *o.jacobians == "stable" ? JacobianRefresh::Stable : JacobianRefresh::Joints;
-  if (o.gyroscopic)
-    s.gyroscopic = *o.gyroscopic == "implicit" ? Gyroscopic::Implicit
-                   : *o.gyroscopic == "explicit" ? Gyroscopic::Explicit
-                                                 : Gyroscopic::None;
-  if (o.contactHertz) s.contactHertz = *o.contactHertz;
-  if (o.contactDamping) s.contactDamping = *o.contactDamping;
-  if (o.jointHertz) s.jointHertz = *o.jointHertz;
-  if (o.jointDamping) s.jointDamping = *o.jointDamping;
-  if (o.pushOut) s.pushOut = *o.pushOut;
+  for (const SettingSpec& spec : settingTable())
+    if (spec.resolved() && o.has(spec) && spec.takes.has(a)) spec.put(s, *o.value(spec));
   return s;
+}
+
+SolverSettings resolveFor(const SolverOverrides& scene, const SolverOverrides& commandLine) {
+  SolverOverrides use = scene.withCommandLine(commandLine);
+  const Algorithm a = use.algorithm().value_or(Algorithm::A2);
+  checkTaken(commandLine, a);
+  if (!commandLine.preset() && commandLine.algorithm() && use.preset() && !havokScaled(a))
+    use.clear(*findSetting("preset"));  // the scene's preset, an algorithm without one asked for
+  return resolve(use);
+}
+
+// --- lines -----------------------------------------------------------------------------------
+
+std::string settingsLine(const SolverSettings& s, LineDetail detail) {
+  const Algorithm a = s.algorithm;
+  std::vector<std::string> items;
+  for (const SettingSpec& spec : settingTable()) {
+    if (!spec.resolved() || !spec.takes.has(a) || std::string(spec.key) == "algorithm") continue;
+    const double v = spec.get(s);
+    const bool dt = std::string(spec.key) == "dt";
+    const bool shown = detail == LineDetail::Complete || spec.brief.has(a) || (dt && detail == LineDetail::Hud) ||
+                       v != spec.defaultFor(a);
+    if (!shown) continue;
+    if (spec.kind == SettingKind::Flag) {
+      if (v != 0) items.push_back(spec.line);
+      else if (detail != LineDetail::Complete) items.push_back(std::string("no-") + spec.line);
+      continue;
+    }
+    const std::string value = dt ? stepText(v) : spec.text(v);
+    std::string item = spec.line;
+    item.replace(item.find("%s"), 2, value);
+    items.push_back(item);
+  }
+  std::string o = algorithmName(a);
+  const char* sep = " ";
+  if (detail == LineDetail::Complete) o += std::string(" (") + algorithmTitle(a) + ")";
+  if (detail == LineDetail::Hud) {
+    o += std::string(" ") + algorithmTitle(a);
+    sep = "  ";
+  }
+  for (const std::string& i : items) o += sep + i;
+  return o;
 }
 
 }  // namespace substep

@@ -1,11 +1,19 @@
 // Solver settings: which of the report's algorithms steps the world, and its parameters.
-// Every setting is one row of settingTable(): its key in scene files and method specs, its
-// command-line option, its range and its help. Scene files, the command line, `--compare` and the
-// lab's sweeps all read settings through that table, so a range is stated once.
+//
+// One schema describes every setting once (settingTable(), in settings.cpp): its key in scene
+// files, method specs and JSON, its alias and command-line flag, its type and range, its default
+// for each algorithm, which algorithms read it, whether it is one of the report's or an extension,
+// how the page shows it, and its help. Each row points at the field of SolverSettings it sets, so
+// that every reader and writer is a loop over the table: the command line and its --no- forms,
+// method specs and grids, the scene's "solver" block, JSON out and in (settings_json.h), the
+// settings lines, the server's /api/methods and the page's controls. Adding a setting is a field
+// of SolverSettings, one row, and the code that uses it.
 #pragma once
 
 #include "physics/limits.h"
 
+#include <array>
+#include <bitset>
 #include <optional>
 #include <string>
 #include <variant>
@@ -17,11 +25,30 @@ namespace substep {
 // Soft is not the report's: Box2D v3's soft step in 3D, an extension to compare against
 // (physics/steppers/soft_step.cpp, docs/algorithms.md "The soft step").
 enum class Algorithm { A1 = 1, A2, A3, A4, A5, Soft };
+inline constexpr int kAlgorithmCount = 6;
+inline constexpr std::array<Algorithm, kAlgorithmCount> kAlgorithms = {Algorithm::A1, Algorithm::A2, Algorithm::A3,
+                                                                      Algorithm::A4, Algorithm::A5, Algorithm::Soft};
 const char* algorithmName(Algorithm a);       // "a1" .. "a5", "soft"
-const char* algorithmTitle(Algorithm a);      // "essential, direct" ...
+const char* algorithmTitle(Algorithm a);      // "essential stepping, direct MLCP" ...
 std::optional<Algorithm> parseAlgorithm(const std::string& s);
 bool subSteps(Algorithm a);                   // A3, A4, A5, Soft: they take n
 bool havokScaled(Algorithm a);                // A3, A4, A5: they take κ and τ
+
+// A set of algorithms: which read a setting.
+class AlgorithmSet {
+ public:
+  constexpr AlgorithmSet() = default;
+  constexpr AlgorithmSet(std::initializer_list<Algorithm> list) {
+    for (Algorithm a : list) bits_ |= bit(a);
+  }
+  constexpr bool has(Algorithm a) const { return (bits_ & bit(a)) != 0; }
+  constexpr bool all() const { return bits_ == 0x3f; }
+  std::string text() const;  // "a3, a4, a5"
+
+ private:
+  static constexpr unsigned bit(Algorithm a) { return 1u << (static_cast<int>(a) - 1); }
+  unsigned bits_ = 0;
+};
 
 // The gyroscopic term of Euler's equation I ω̇ + ω × Iω = 0, which the report's ext leaves out.
 enum class Gyroscopic {
@@ -30,105 +57,189 @@ enum class Gyroscopic {
   Implicit,  // one Newton step on I(ω' - ω) + h ω' × Iω' = 0 in the body frame (Catto, GDC 2015)
 };
 
-// Which joint Jacobians A5 recomputes between sub-steps (IV.4.1).
+// Which joints A5 re-formulates between sub-steps (IV.4.1).
 enum class JacobianRefresh {
-  Joints,  // every joint's, from the coordinates stepped by the summed rotation (an extension)
-  Stable,  // the report's: only 'stable' rows', while micro-iterating, next-frame predicted
+  EveryJoint,  // every joint's J̌, from the coordinates stepped by the summed rotation (an extension)
+  Stable,      // the report's: only 'stable' rows', while micro-iterating, next-frame predicted
 };
 
+// The settings a run uses, every one resolved (resolve()). A default-constructed one holds A2's
+// defaults from the schema. Each field is one row of the schema; ranges, defaults and help are
+// there, not here.
 struct SolverSettings {
-  Algorithm algorithm = Algorithm::A2;
-  double dt = 1.0 / 60.0;        // h [s]
-  int substeps = 1;              // n: sub-steps per step (A3-A5; A1/A2 use 1)
-  int iterations = 10;           // A2: iteration cap; A3-A5: micro-iterations m per sub-step
-  double omega = 1.0;            // A2: over-relaxation ω of PSOR
-  double tolerance = 1e-6;       // A2: stop when no row changed its velocity by more [m/s]
-  double kappa = 1.0;            // κ (A3-A5)
-  double tau = 0.6;              // τ (A3-A5)
-  bool warmStart = false;        // start each step from the previous step's impulses
-  bool splitImpulse = false;     // correct contact penetration apart from the velocity solve
-  bool blockSolve = false;       // solve 'stable' (unbounded) constraints as blocks (IV.2.2 item 2)
-  bool contactBlocks = false;    // solve a manifold's normal rows as one small LCP (an extension)
-  double slop = 0.001;           // allowed penetration: the report's hi [m]
-  // Extensions on by default, each with the report's literal behaviour a switch away.
-  bool motorUnscaled = true;     // motors solved with κ = τ = 1 (off: κ, τ as on every row)
-  bool frictionExempt = true;    // friction rows keep β = 0 under A4/A5's bias update (off: updated)
-  bool speculative = true;       // points within a margin before touching, closing at full speed
-  bool restitution = true;       // bodies' restitution applied after the velocity solve
-  bool islands = true;           // a5: solve island by island (the same numbers as all at once)
-  double restitutionThreshold = 1.0;  // approach speeds below this do not bounce [m/s]
-  JacobianRefresh jacobians = JacobianRefresh::Joints;  // A5 (IV.4.1)
-  Gyroscopic gyroscopic = Gyroscopic::None;             // the report's: none
-  // The soft step (Box2D v3): softness of contacts and joints, push-out cap.
-  double contactHertz = 30;      // [Hz]
-  double contactDamping = 10;    // damping ratio ζ
-  double jointHertz = 60;        // [Hz]
-  double jointDamping = 2;       // damping ratio ζ
-  double pushOut = 3;            // largest speed a soft contact pushes penetrating bodies apart [m/s]
-  int directMaxRows = 1500;      // A1: largest MLCP it forms densely (rows)
-  double directWorkBudget = 2e10;  // A1: floating-point operations per step (mlcp_direct.h), about 3 s here
+  SolverSettings();
+
+  Algorithm algorithm;
+  double dt;                      // h [s]
+  int substeps;                   // n: sub-steps per step
+  int iterations;                 // A2: iteration cap; A3-A5: micro-iterations m; soft: sweeps
+  double omega;                   // A2: over-relaxation ω of PSOR
+  double tolerance;               // A2: stop when no row's velocity changed more [m/s]
+  double kappa;                   // κ (A3-A5)
+  double tau;                     // τ (A3-A5)
+  double slop;                    // allowed penetration, the report's hi [m]
+  bool warmStart;                 // start each (sub-)step from the previous one's impulses
+  bool blockSolve;                // 'stable' (unbounded) joint rows solved as blocks (IV.2.2 item 2)
+  bool contactBlocks;             // a manifold's normal rows solved as one small LCP
+  bool splitImpulse;              // contact penetration corrected apart from the velocity solve
+  bool motorUnscaled;             // motors solved with κ = τ = 1
+  bool frictionExempt;            // friction rows keep β = 0 under A4/A5's bias update
+  bool speculative;               // points within a margin before touching, closing at full speed
+  bool restitution;               // bodies' restitution applied after the velocity solve
+  double restitutionThreshold;    // approach speeds below this do not bounce [m/s]
+  bool islands;                   // A5: island by island (the same numbers as all at once)
+  JacobianRefresh jacobians;      // A5 (IV.4.1)
+  Gyroscopic gyroscopic;
+  double contactHertz;            // soft: contact stiffness [Hz]
+  double contactDamping;          // soft: damping ratio ζ
+  double jointHertz;              // soft: joint stiffness [Hz]
+  double jointDamping;            // soft: damping ratio ζ
+  double pushOut;                 // soft: largest push-out speed [m/s]
+  int directMaxRows;              // A1: largest MLCP it forms densely [rows]
+  double directWorkBudget;        // A1: floating-point operations per step (mlcp_direct.h)
 };
 
-// Settings as a scene file or a command line gives them: every field optional.
-struct SolverOverrides {
-  std::optional<Algorithm> algorithm;
-  std::optional<double> dt;
-  std::optional<int> substeps;
-  std::optional<int> iterations;
-  std::optional<double> omega, tolerance, kappa, tau, slop;
-  std::optional<bool> warmStart, blockSolve, splitImpulse, contactBlocks;
-  std::optional<bool> motorUnscaled, frictionExempt, speculative, restitution, islands;
-  std::optional<double> restitutionThreshold;
-  std::optional<std::string> jacobians;  // "joints" or "stable"
-  std::optional<std::string> gyroscopic;  // "none", "explicit", "implicit"
-  std::optional<double> contactHertz, contactDamping, jointHertz, jointDamping, pushOut;
-  std::optional<std::string> preset;   // Havok's presets, e.g. "4-medium"
+// --- the schema ------------------------------------------------------------------------------
 
-  // Later values win, field by field: commandLine.merged(comparePanel).
+enum class SettingKind { Integer, Real, Flag, Choice };
+enum class SettingOrigin {
+  Report,     // one of the report's parameters (n, m, κ, τ, h, ...)
+  Extension,  // beyond the report (warm starting, speculative contacts, the soft step, ...)
+  Limit,      // substep's own resource limits (A1's size and work budget)
+};
+const char* originName(SettingOrigin o);  // "report", "extension", "limit"
+
+// The setting's field in SolverSettings; none for a setting that only sets others (a preset).
+using SettingField = std::variant<std::monostate, Algorithm SolverSettings::*, int SolverSettings::*,
+                                  double SolverSettings::*, bool SolverSettings::*,
+                                  JacobianRefresh SolverSettings::*, Gyroscopic SolverSettings::*>;
+
+// How the page shows a setting: among the main controls, and a slider's useful part of the range.
+struct SettingControl {
+  bool main = false;
+  const char* label = "";   // "n (sub-steps)"; "" : the key
+  double min = 0, max = 0, step = 0;
+};
+
+// Every value of a setting is held as a double: numbers as they are, flags 0 or 1, choices the
+// index of their name in `choices`.
+struct SettingSpec {
+  const char* key;        // scene files, method specs and JSON: "substeps"
+  const char* alias;      // method specs' short form: "n" ("" if none)
+  const char* flag;       // command line without dashes: "substeps" (flags also get "no-" + flag)
+  SettingKind kind;
+  Range range;            // Integer, Real
+  std::vector<std::string> choices;  // Choice
+  AlgorithmSet takes;     // the algorithms that read it
+  SettingOrigin origin;
+  // In settings lines: a number "κ=0.85" from "κ=%s"; a flag its word when on ("warm"); a
+  // choice "jacobians=%s". Brief lines show a setting for these algorithms always, else only
+  // when it differs from the algorithm's default.
+  const char* line;
+  AlgorithmSet brief;
+  const char* help;       // one line, for --help, /api/methods and docs
+  SettingField field;
+  std::array<double, kAlgorithmCount> defaults;  // for a1 .. a5, soft
+  SettingControl control;
+  size_t index = 0;       // its place in the table
+
+  bool resolved() const { return field.index() != 0; }  // false: it only sets others
+  double defaultFor(Algorithm a) const { return defaults[static_cast<size_t>(a) - 1]; }
+  // "an integer in [1, 1000]", "a number in (0, 2)", "on or off", "one of a1, a2, ...".
+  std::string expected() const;
+  // A value checked against the range or the choices; throws std::invalid_argument
+  // "expected <expected()>, got <value>".
+  double check(double value) const;
+  // Text as typed (numbers, fractions such as 1/120, on/off, a choice's name), checked.
+  double parse(const std::string& text) const;
+  // A value as text that parse() reads back exactly: "0.85", "on", "stable".
+  std::string text(double value) const;
+  // The field of resolved settings.
+  double get(const SolverSettings& s) const;
+  void put(SolverSettings& s, double value) const;
+};
+
+const std::vector<SettingSpec>& settingTable();
+// By key, alias or command-line flag name; null if none.
+const SettingSpec* findSetting(const std::string& name);
+const SettingSpec& settingOf(const SettingField& field);  // the row of a SolverSettings field
+// "n, m, kappa, ..." for messages.
+std::string settingKeys();
+// Its defaults for the algorithms that read it: "4", "10 (a3, a4, a5, soft: 1)", "off (soft: on)".
+std::string defaultsText(const SettingSpec& s);
+
+// --- given settings --------------------------------------------------------------------------
+
+// Settings as a scene file, a command line or a method spec gives them: any subset of the table,
+// each value checked when set.
+class SolverOverrides {
+ public:
+  bool has(const SettingSpec& s) const { return set_[s.index]; }
+  std::optional<double> value(const SettingSpec& s) const;
+  void set(const SettingSpec& s, double value);  // checked: throws std::invalid_argument
+  void setText(const SettingSpec& s, const std::string& text) { set(s, s.parse(text)); }
+  void clear(const SettingSpec& s) { set_.reset(s.index); }
+  std::string text(const SettingSpec& s) const;  // "" when not set
+
+  // By the field they set: o.set(&SolverSettings::kappa, 0.85), o.get(&SolverSettings::kappa).
+  template <class T, class U>
+  void set(T SolverSettings::*field, U value) {
+    const SettingSpec& s = settingOf(field);
+    set(s, encode(static_cast<T>(value)));
+  }
+  template <class T>
+  std::optional<T> get(T SolverSettings::*field) const {
+    const SettingSpec& s = settingOf(field);
+    if (!has(s)) return std::nullopt;
+    return decode<T>(v_[s.index]);
+  }
+  template <class T>
+  void clear(T SolverSettings::*field) {
+    clear(settingOf(field));
+  }
+  std::optional<Algorithm> algorithm() const { return get(&SolverSettings::algorithm); }
+  std::optional<std::string> preset() const;  // Havok's preset, e.g. "4-medium"
+  void setPreset(const std::string& name);
+
+  // Later values win, setting by setting: commandLine.merged(comparePanel).
   SolverOverrides merged(const SolverOverrides& later) const;
   // A scene file's settings under the command line's: as merged(), except that a preset on the
   // command line also replaces the scene's n, m, κ and τ (what a preset sets), so that
   // `--preset 4-medium` means Havok's medium preset on any scene. Values given on the command line
   // next to the preset still win over it (resolve() applies them after the preset).
   SolverOverrides withCommandLine(const SolverOverrides& commandLine) const;
-  bool empty() const;
+  bool empty() const { return set_.none(); }
+  // As a method spec: "a5:n=8:kappa=0.9" ("scene" for no algorithm).
+  std::string specText() const;
+  bool operator==(const SolverOverrides& o) const;
+
+  template <class T>
+  static double encode(T v) {
+    if constexpr (std::is_enum_v<T>) return static_cast<double>(static_cast<int>(v) - (std::is_same_v<T, Algorithm> ? 1 : 0));
+    else return static_cast<double>(v);
+  }
+  template <class T>
+  static T decode(double v) {
+    if constexpr (std::is_enum_v<T>) return static_cast<T>(static_cast<int>(v) + (std::is_same_v<T, Algorithm> ? 1 : 0));
+    else if constexpr (std::is_same_v<T, bool>) return v != 0;
+    else return static_cast<T>(v);
+  }
+
+ private:
+  static constexpr size_t kMaxSettings = 64;
+  std::array<double, kMaxSettings> v_{};
+  std::bitset<kMaxSettings> set_;
 };
 
-// --- the table -------------------------------------------------------------------------------
+// Given settings as command-line options: " --kappa 0.85 --no-warm-start".
+std::string flagsText(const SolverOverrides& o);
 
-enum class SettingKind { Integer, Real, Flag, Choice };
-
-struct SettingSpec {
-  const char* key;      // scene files' "solver" block and method specs: "substeps"
-  const char* alias;    // method specs' short form: "n" ("" if none)
-  const char* flag;     // command line without dashes: "substeps" (flags also get "no-" + flag)
-  SettingKind kind;
-  Range range;          // Integer, Real
-  std::vector<std::string> choices;  // Choice
-  const char* help;     // one line, for --help and docs
-  std::variant<std::optional<Algorithm> SolverOverrides::*, std::optional<int> SolverOverrides::*,
-               std::optional<double> SolverOverrides::*, std::optional<bool> SolverOverrides::*,
-               std::optional<std::string> SolverOverrides::*>
-      field;
-
-  // "an integer in [1, 1000]", "a number in (0, 2)", "on or off", "one of a1, a2, ...".
-  std::string expected() const;
-  bool isSet(const SolverOverrides& o) const;
-  std::string valueText(const SolverOverrides& o) const;  // "" if unset
-  void copy(const SolverOverrides& from, SolverOverrides& to) const;
-  void clear(SolverOverrides& o) const;
-  // Setting a value checks it against the range or the choices; the message of the
-  // std::invalid_argument thrown is "expected <expected()>, got <value>".
-  void setNumber(SolverOverrides& o, double x) const;        // Integer, Real
-  void setFlag(SolverOverrides& o, bool b) const;            // Flag
-  void setText(SolverOverrides& o, const std::string& text) const;  // any kind, parsed
-};
-
-const std::vector<SettingSpec>& settingTable();
-// By key, alias or command-line flag name; null if none.
-const SettingSpec* findSetting(const std::string& name);
-// "n, m, kappa, ..." for messages.
-std::string settingKeys();
+// Refuses what is given explicitly (a command line, a method spec, the page) for an algorithm that
+// does not read it: "kappa: a2 does not use κ; a3, a4, a5 do". Throws std::invalid_argument.
+// A scene file's settings are not checked: they describe the scene's own algorithm, and another
+// algorithm run on the scene leaves what it does not read.
+void checkTaken(const SolverOverrides& given, Algorithm a);
+void checkTakes(const SettingSpec& s, Algorithm a);
 
 // --- method specs ----------------------------------------------------------------------------
 // An algorithm and settings, as `--compare` and the lab write them:
@@ -146,7 +257,6 @@ struct MethodSpec {
   SolverOverrides overrides;   // the algorithm and the settings it names (a peer: no algorithm)
   std::string peer;            // "" for substep's algorithms, "bullet" for the Bullet peer
 };
-// The peer engines a spec may name, and the setting keys each takes.
 inline constexpr const char* kBulletPeer = "bullet";
 // One spec; with value lists, every combination in order (the last key varies fastest).
 // Throws std::invalid_argument naming the spec, the key and what was expected.
@@ -154,9 +264,24 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& spec);
 // A comma-separated list of specs, each expanded.
 std::vector<MethodSpec> parseMethodSpecs(const std::string& list);
 
-// Fills what the overrides leave open with the algorithm's defaults: A1/A2 as the report has
-// them (ω 1, 10 iterations, rows one by one), A3-A5 with Havok's (n 4, m 1, τ 0.6, κ 1, blocks).
-// Throws std::invalid_argument with a message naming the field when a value is out of range.
+// Fills what the overrides leave open with the algorithm's defaults (the schema's), after a
+// preset when one is given; a value given for a setting the algorithm does not read is left out.
+// Throws std::invalid_argument naming the setting when a value is out of range or a preset is
+// given to an algorithm without sub-steps.
 SolverSettings resolve(const SolverOverrides& o);
+// As `substep run SCENE` resolves: the scene's settings under the command line's (withCommandLine),
+// what the command line gives checked against the algorithm (checkTaken), a scene's preset dropped
+// when the command line asks for an algorithm without one. Throws std::invalid_argument.
+SolverSettings resolveFor(const SolverOverrides& scene, const SolverOverrides& commandLine);
+
+// --- lines -----------------------------------------------------------------------------------
+// Complete: "a5 (Havok stepping, actual) h=1/60 n=4 m=1 κ=1 τ=0.6 slop=0.001 blocks ..." (every
+// setting the algorithm reads); Brief: "a5 n=4 m=1 κ=0.85 τ=0 warm" (the algorithm's main
+// settings, and what differs from its defaults); Hud: the algorithm's title and the brief items.
+enum class LineDetail { Complete, Brief, Hud };
+std::string settingsLine(const SolverSettings& s, LineDetail detail = LineDetail::Complete);
+
+// "1/60" for 0.016666..., else the number: how time steps are printed.
+std::string stepText(double dt);
 
 }  // namespace substep

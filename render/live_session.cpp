@@ -268,7 +268,7 @@ void LiveSession::collectStats(LiveStats& s) {
     const StepReport& r = w.lastReport();
     LivePanelStats ps;
     ps.name = p.name();
-    ps.settings = settingsLine(p.settings());
+    ps.settings = settingsLine(p.settings(), LineDetail::Hud);
     ps.time = p.state().time;
     ps.steps = p.steps();
     const size_t k = static_cast<size_t>(i);

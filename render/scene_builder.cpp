@@ -291,44 +291,6 @@ std::string sceneLine(const Scene& scene) {
          std::to_string(scene.model.joints.size()) + " joints";
 }
 
-std::string settingsLine(const SolverSettings& s) {
-  std::string o = std::string(algorithmName(s.algorithm)) + " " + algorithmTitle(s.algorithm) + "  ";
-  const double inv = 1.0 / s.dt;
-  o += std::abs(inv - std::round(inv)) < 1e-9 ? "h=1/" + std::to_string(std::llround(inv)) : fmt("h=%g", s.dt);
-  // n and m as the report names them: sub-steps and (micro-)iterations; A1/A2 take one step.
-  o += "  n=" + std::to_string(subSteps(s.algorithm) ? s.substeps : 1);
-  if (s.algorithm != Algorithm::A1) o += "  m=" + std::to_string(s.iterations);
-  if (havokScaled(s.algorithm))
-    o += fmt("  κ=%g", s.kappa) + fmt("  τ=%g", s.tau);
-  else if (s.algorithm == Algorithm::Soft)
-    o += fmt("  %g Hz", s.contactHertz) + fmt(" ζ=%g", s.contactDamping);
-  else if (s.algorithm == Algorithm::A2)
-    o += fmt("  ω=%g", s.omega);
-  if (s.warmStart) o += "  warm";
-  if (s.splitImpulse) o += "  split";
-  return o;
-}
-
-std::string shortSettingsLine(const SolverSettings& s) {
-  std::string o = algorithmName(s.algorithm);
-  switch (s.algorithm) {
-    case Algorithm::A1: break;
-    case Algorithm::A2:
-      o += " m=" + std::to_string(s.iterations);
-      if (s.omega != 1.0) o += fmt(" ω=%g", s.omega);
-      break;
-    case Algorithm::Soft: o += " n=" + std::to_string(s.substeps) + fmt(" %g Hz", s.contactHertz); break;
-    default:
-      o += " n=" + std::to_string(s.substeps) + " m=" + std::to_string(s.iterations) + fmt(" κ=%g", s.kappa) +
-           fmt(" τ=%g", s.tau);
-      break;
-  }
-  if (std::abs(s.dt - 1.0 / 60) > 1e-12) o += fmt(" h=%g", s.dt);
-  if (s.warmStart) o += " warm";
-  if (s.splitImpulse) o += " split";
-  return o;
-}
-
 // ---- builder ----
 
 std::vector<double> bodyErrors(const Model& model, const State& state, const std::vector<Manifold>* manifolds) {

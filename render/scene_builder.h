@@ -49,8 +49,6 @@ struct HudInfo {
 };
 
 std::string sceneLine(const Scene& scene);
-std::string settingsLine(const SolverSettings& s);   // the algorithm with its n, m, κ, τ (or ω)
-std::string shortSettingsLine(const SolverSettings& s);  // panel label: what differs, compactly
 
 // Camera placement: a preset from the scene file plus command-line changes.
 struct CameraOptions {

@@ -103,7 +103,7 @@ DrawList RenderSession::drawList(int i, const State* state) const {
   HudInfo hud;
   if (lone) {
     hud.scene = sceneLine(*scene_);
-    hud.settings = settingsLine(p.settings());
+    hud.settings = settingsLine(p.settings(), LineDetail::Hud);
   }  // a grid panel's label names its settings; its HUD keeps to time and cost
   hud.time = s.time;
   if (look_.stepCost) hud.stepMs = p.lastStepMs();
@@ -115,7 +115,7 @@ DrawList RenderSession::drawList(int i, const State* state) const {
   const Camera cam = placeCamera(look_.camera, scene_->model, s, look_.orbit);
   // A diverged world's manifolds belong to its non-finite state.
   DrawList dl = buildDrawList(scene_->model, s, p.diverged() ? nullptr : &p.world().manifolds(), cam, look_.view, hud);
-  if (!lone) dl.label = shortSettingsLine(p.settings());
+  if (!lone) dl.label = settingsLine(p.settings(), LineDetail::Brief);
   return dl;
 }
 

@@ -49,7 +49,7 @@ TEST_P(SettledStep, AllocatesNothing) {
   const Case& c = GetParam();
   const Scene scene = loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + c.scene + ".json");
   SolverOverrides o = scene.solver;
-  if (*c.algorithm) o.algorithm = parseAlgorithm(c.algorithm);
+  if (*c.algorithm) o.set(&SolverSettings::algorithm, *parseAlgorithm(c.algorithm));
   World world(scene.model, resolve(o), scene.initial);
   for (int k = 0; k < 180; ++k) ASSERT_TRUE(world.step().finite);  // 3 s: settled
   gAllocations = 0;

@@ -21,15 +21,15 @@ Scene scene(const std::string& file) { return loadScene(std::string(SUBSTEP_SOUR
 
 SolverSettings settings(Algorithm a, int n, int m, double kappa = 1, double tau = 1, bool blocks = true) {
   SolverOverrides o;
-  o.algorithm = a;
-  if (subSteps(a)) o.substeps = n;
-  o.iterations = m;
-  o.kappa = kappa;
-  o.tau = tau;
-  o.tolerance = 0;  // A2: exactly m sweeps
-  o.blockSolve = blocks;
-  o.warmStart = false;
-  o.splitImpulse = false;
+  o.set(&SolverSettings::algorithm, a);
+  if (subSteps(a)) o.set(&SolverSettings::substeps, n);
+  o.set(&SolverSettings::iterations, m);
+  o.set(&SolverSettings::kappa, kappa);
+  o.set(&SolverSettings::tau, tau);
+  o.set(&SolverSettings::tolerance, 0);  // A2: exactly m sweeps
+  o.set(&SolverSettings::blockSolve, blocks);
+  o.set(&SolverSettings::warmStart, false);
+  o.set(&SolverSettings::splitImpulse, false);
   return resolve(o);
 }
 
@@ -218,7 +218,7 @@ TEST(Claims, A5WithTheReportsStableRowRefreshIsAlsoSecondOrder) {
   EXPECT_GT(p, 1.8);
   EXPECT_NE(dStable[1], dJoints[1]);  // a different scheme
   // Over 3 s the chain keeps its joints under either.
-  for (const JacobianRefresh jr : {JacobianRefresh::Stable, JacobianRefresh::Joints}) {
+  for (const JacobianRefresh jr : {JacobianRefresh::Stable, JacobianRefresh::EveryJoint}) {
     SolverSettings st = settings(Algorithm::A5, 4, 1, 1, 0.6);
     st.jacobians = jr;
     World w(s.model, st, s.initial);
@@ -334,7 +334,7 @@ TEST(Claims, SummedRotationIsFirstOrder) {
 TEST(Claims, RagdollPileStaysTogether) {
   const Scene s = scene("ragdoll_pile.json");
   SolverOverrides o;
-  o.algorithm = Algorithm::A5;
+  o.set(&SolverSettings::algorithm, Algorithm::A5);
   World w(s.model, resolve(o), s.initial);
   double worstJoint = 0, worstJointLate = 0;
   for (int k = 0; k < 600; ++k) {

@@ -87,7 +87,7 @@ TEST(Cli, BadArgumentsExitWithStatus2) {
   EXPECT_NE(r.output.find("--algo"), std::string::npos) << r.output;
   r = run("run assets/scenes/stack.json --algo a2 --substeps 4");
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.output.find("does not sub-step"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--substeps: a2 does not use it (a3, a4, a5, soft do)"), std::string::npos) << r.output;
   r = run("run assets/scenes/stack.json --steps 10 --seconds 1");
   EXPECT_EQ(r.status, 2);
   r = run("run assets/scenes/stack.json --steps 1 --trajectory /proc/forbidden/t.csv");

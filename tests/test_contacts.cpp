@@ -17,7 +17,7 @@ namespace {
 Scene sceneFrom(const std::string& json) { return parseScene(json, "<test>", "."); }
 
 SolverSettings settingsFor(Algorithm a, SolverOverrides o = {}) {
-  o.algorithm = a;
+  o.set(&SolverSettings::algorithm, a);
   return resolve(o);
 }
 
@@ -58,17 +58,17 @@ TEST_P(EveryAlgorithm, BallReboundsToESquaredOfItsHeight) {
   const Scene s = bouncingBall(0.5);
   const double coarse = reboundHeight(s, settingsFor(GetParam()));
   SolverOverrides fine;
-  fine.dt = 1.0 / 240;
+  fine.set(&SolverSettings::dt, 1.0 / 240);
   const double small = reboundHeight(s, settingsFor(GetParam(), fine));
   std::printf("%s: rebound %.4f m at h = 1/60, %.4f m at 1/240 (e² h = 0.25 m)\n", algorithmName(GetParam()), coarse,
               small);
   EXPECT_NEAR(coarse, 0.25, 0.1 * 0.25);
   EXPECT_NEAR(small, 0.25, 0.03 * 0.25);
   SolverOverrides off;
-  off.restitution = false;
+  off.set(&SolverSettings::restitution, false);
   EXPECT_LT(reboundHeight(s, settingsFor(GetParam(), off)), 0.002);
   SolverOverrides high;
-  high.restitutionThreshold = 5;  // the ball lands at 4.4 m/s
+  high.set(&SolverSettings::restitutionThreshold, 5);  // the ball lands at 4.4 m/s
   EXPECT_LT(reboundHeight(s, settingsFor(GetParam(), high)), 0.002);
 }
 
@@ -85,12 +85,12 @@ TEST_P(EveryAlgorithm, BoxesDroppedOntoEachOtherRestTouching) {
     // sub-step leaves are never corrected, and cold the stack sinks (the bottom box 8 cm into the
     // ground after 3 s); warm started, as pyramid.json runs it, it holds.
     variants.assign(3, SolverOverrides{});
-    variants[0].tau = 0;
-    variants[0].kappa = 0.85;
-    variants[0].warmStart = true;
-    variants[1].tau = 0.3;
-    variants[2].tau = 0.6;
-    for (auto& v : variants) v.contactBlocks = true;  // without them one sweep rocks the boxes (below)
+    variants[0].set(&SolverSettings::tau, 0);
+    variants[0].set(&SolverSettings::kappa, 0.85);
+    variants[0].set(&SolverSettings::warmStart, true);
+    variants[1].set(&SolverSettings::tau, 0.3);
+    variants[2].set(&SolverSettings::tau, 0.6);
+    for (auto& v : variants) v.set(&SolverSettings::contactBlocks, true);  // without them one sweep rocks the boxes (below)
   }  for (const SolverOverrides& o : variants) {
     World w(s.model, settingsFor(GetParam(), o), s.initial);
     for (int k = 0; k < 180; ++k) ASSERT_TRUE(w.step().finite);
@@ -102,7 +102,7 @@ TEST_P(EveryAlgorithm, BoxesDroppedOntoEachOtherRestTouching) {
       worstDepth = std::max(worstDepth, -gap);
     }
     std::printf("%s tau %s: largest gap %.2f mm, deepest %.2f mm\n", algorithmName(GetParam()),
-                o.tau ? std::to_string(*o.tau).c_str() : "-", worstGap * 1e3, worstDepth * 1e3);
+                o.get(&SolverSettings::tau) ? std::to_string(*o.get(&SolverSettings::tau)).c_str() : "-", worstGap * 1e3, worstDepth * 1e3);
     EXPECT_LT(worstGap, 0.0005);  // touching: no box held above the next by its speculative point
     // ... and within about the slop; soft contacts are springs that the weight above compresses.
     EXPECT_LT(worstDepth, GetParam() == Algorithm::Soft ? 0.005 : 0.004);
@@ -115,7 +115,7 @@ TEST_P(EveryAlgorithm, FastImpactNeitherSinksNorBounces) {
       {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]},
       {"name": "box", "shape": {"type": "box", "half_extents": [0.3, 0.2, 0.25]}, "position": [0, 2.4, 0]}]})");
   SolverOverrides o;
-  if (havokScaled(GetParam())) o.contactBlocks = true;
+  if (havokScaled(GetParam())) o.set(&SolverSettings::contactBlocks, true);
   World w(s.model, settingsFor(GetParam(), o), s.initial);
   double lowest = 1e9, highestAfter = -1e9, maxPen = 0;
   bool landed = false;
@@ -148,8 +148,8 @@ TEST(ContactBlocks, OffInTheReportsPresetsAndWhatTheyChange) {
       {"name": "box", "shape": {"type": "box", "half_extents": [0.3, 0.2, 0.25]}, "position": [0, 2.4, 0]}]})");
   for (const bool blocks : {false, true}) {
     SolverOverrides o;
-    o.preset = "4-medium";
-    if (blocks) o.contactBlocks = true;
+    o.setPreset("4-medium");
+    if (blocks) o.set(&SolverSettings::contactBlocks, true);
     const SolverSettings st = settingsFor(Algorithm::A5, o);
     EXPECT_EQ(st.contactBlocks, blocks);
     EXPECT_TRUE(st.blockSolve);  // the report's stable (joint) blocks stay on
@@ -250,8 +250,8 @@ TEST(FrictionExempt, FrictionTakesTheBiasUpdateOnlyWhenAsked) {
   double slid[2];
   for (const bool exempt : {true, false}) {
     SolverOverrides o;
-    o.frictionExempt = exempt;
-    o.contactBlocks = true;
+    o.set(&SolverSettings::frictionExempt, exempt);
+    o.set(&SolverSettings::contactBlocks, true);
     World w(s.model, settingsFor(Algorithm::A4, o), s.initial);
     w.step();
     double largestBias = 0;
@@ -312,7 +312,7 @@ TEST(Rows, FrictionCouplingsAreRowByRowGaussSeidel) {
       {"name": "b", "shape": {"type": "box", "half_extents": [0.3, 0.3, 0.3]}, "position": [0.1, 0.9, 0.1],
        "friction": 2}]})");
   SolverOverrides o;
-  o.contactBlocks = false;
+  o.set(&SolverSettings::contactBlocks, false);
   World w(s.model, settingsFor(Algorithm::A2, o), s.initial);
   for (int k = 0; k < 5; ++k) w.step();
   ConstraintSet fast = w.constraints(), slow = w.constraints(), uncoupled = w.constraints();

@@ -16,7 +16,7 @@ Scene sceneFrom(const std::string& json) { return parseScene(json, "<test>", "."
 
 SolverSettings defaults(Algorithm a) {
   SolverOverrides o;
-  o.algorithm = a;
+  o.set(&SolverSettings::algorithm, a);
   return resolve(o);
 }
 
@@ -68,10 +68,10 @@ TEST(Motor, TheReportsLiteralKappaAndTauSlowIt) {
   for (const Algorithm a : {Algorithm::A3, Algorithm::A4, Algorithm::A5}) {
     for (const bool unscaled : {true, false}) {
       SolverOverrides o;
-      o.algorithm = a;
-      o.kappa = 1.1;
-      o.tau = 0.6;
-      o.motorUnscaled = unscaled;
+      o.set(&SolverSettings::algorithm, a);
+      o.set(&SolverSettings::kappa, 1.1);
+      o.set(&SolverSettings::tau, 0.6);
+      o.set(&SolverSettings::motorUnscaled, unscaled);
       World w(s.model, resolve(o), s.initial);
       for (int k = 0; k < 60; ++k) w.step();
       const double spin = w.state().bodies[1].worldAngularVelocity().z();
@@ -217,10 +217,10 @@ TEST(WarmStart, OneSweepPerSubStepDivergesOnAFixedJoint) {
     "joints": [{"type": "fixed", "bodies": ["wall", "beam"], "anchor": [0.1, 3, 0]}]})");
   auto moved = [&](Algorithm a, int sweeps, double tau) {  // the beam's largest displacement in 2 s [m]
     SolverOverrides o;
-    o.algorithm = a;
-    o.warmStart = true;
-    o.iterations = sweeps;
-    o.tau = tau;
+    o.set(&SolverSettings::algorithm, a);
+    o.set(&SolverSettings::warmStart, true);
+    o.set(&SolverSettings::iterations, sweeps);
+    o.set(&SolverSettings::tau, tau);
     World w(s.model, resolve(o), s.initial);
     double worst = 0;
     for (int k = 0; k < 120; ++k) {
@@ -266,9 +266,9 @@ INSTANTIATE_TEST_SUITE_P(Algorithms, EveryAlgorithm,
 TEST(Blocks, BlockAndRowsAgreeWhenConvergedAndBlocksWinAtOneSweep) {
   auto run = [&](const Scene& s, bool blocks, int m, double& error) {
     SolverOverrides o;
-    o.algorithm = Algorithm::A3;
-    o.iterations = m;
-    o.blockSolve = blocks;
+    o.set(&SolverSettings::algorithm, Algorithm::A3);
+    o.set(&SolverSettings::iterations, m);
+    o.set(&SolverSettings::blockSolve, blocks);
     World w(s.model, resolve(o), s.initial);
     error = 0;
     for (int k = 0; k < (m > 1 ? 10 : 60); ++k) {
@@ -292,65 +292,63 @@ TEST(Blocks, BlockAndRowsAgreeWhenConvergedAndBlocksWinAtOneSweep) {
 
 TEST(Settings, HavokPresetsAndDefaults) {
   SolverOverrides o;
-  o.algorithm = Algorithm::A5;
+  o.set(&SolverSettings::algorithm, Algorithm::A5);
   SolverSettings s = resolve(o);
   EXPECT_EQ(s.substeps, 4);
   EXPECT_EQ(s.iterations, 1);
   EXPECT_EQ(s.tau, 0.6);
   EXPECT_EQ(s.kappa, 1.0);
-  o.preset = "8-hard";
+  o.setPreset("8-hard");
   s = resolve(o);
   EXPECT_EQ(s.substeps, 8);
   EXPECT_EQ(s.tau, 0.9);
   EXPECT_EQ(s.kappa, 1.1);
-  o.preset = "2-soft";
+  o.setPreset("2-soft");
   s = resolve(o);
   EXPECT_EQ(s.substeps, 2);
   EXPECT_EQ(s.tau, 0.3);
   EXPECT_EQ(s.kappa, 0.9);
-  o.preset = "3-medium";
-  EXPECT_THROW(resolve(o), std::invalid_argument);
-  o.preset.reset();
-  o.algorithm = Algorithm::A2;
+  EXPECT_THROW(o.setPreset("3-medium"), std::invalid_argument);
+  o.clear(*findSetting("preset"));
+  o.set(&SolverSettings::algorithm, Algorithm::A2);
   s = resolve(o);
   EXPECT_EQ(s.substeps, 1);
   EXPECT_EQ(s.iterations, 10);
   EXPECT_FALSE(s.blockSolve);
-  o.omega = 2.5;
-  EXPECT_THROW(resolve(o), std::invalid_argument);
+  EXPECT_THROW(o.set(&SolverSettings::omega, 2.5), std::invalid_argument);  // checked when set
 }
 
 // A preset on the command line replaces the scene file's n, m, κ and τ (pyramid.json sets κ and
 // τ); a κ given with the preset still wins over it.
 TEST(Settings, CommandLinePresetReplacesTheScenesKappaAndTau) {
   SolverOverrides scene;
-  scene.kappa = 0.85;
-  scene.tau = 0;
-  scene.substeps = 2;
-  scene.iterations = 3;
+  scene.set(&SolverSettings::kappa, 0.85);
+  scene.set(&SolverSettings::tau, 0);
+  scene.set(&SolverSettings::substeps, 2);
+  scene.set(&SolverSettings::iterations, 3);
   SolverOverrides cli;
-  cli.algorithm = Algorithm::A5;
-  cli.preset = "4-soft";
+  cli.set(&SolverSettings::algorithm, Algorithm::A5);
+  cli.setPreset("4-soft");
   SolverSettings s = resolve(scene.withCommandLine(cli));
   EXPECT_EQ(s.substeps, 4);
   EXPECT_EQ(s.iterations, 1);
   EXPECT_EQ(s.kappa, 0.9);
   EXPECT_EQ(s.tau, 0.3);
-  cli.kappa = 0.7;
+  cli.set(&SolverSettings::kappa, 0.7);
   s = resolve(scene.withCommandLine(cli));
   EXPECT_EQ(s.kappa, 0.7);
   EXPECT_EQ(s.tau, 0.3);
-  cli.preset.reset();
+  cli.clear(*findSetting("preset"));
   s = resolve(scene.withCommandLine(cli));  // without a preset the scene's values stand
   EXPECT_EQ(s.tau, 0.0);
   EXPECT_EQ(s.substeps, 2);
   // Compare panels (render --compare): the command line's other options apply to every panel,
   // one that names a preset included.
   SolverOverrides common;
-  common.kappa = 0.95;
+  common.set(&SolverSettings::kappa, 0.95);
   SolverOverrides panel;
-  panel.algorithm = Algorithm::A5;
-  panel.preset = "4-medium";
+  panel.set(&SolverSettings::algorithm, Algorithm::A5);
+  panel.setPreset("4-medium");
   s = resolve(scene.withCommandLine(common.merged(panel)));
   EXPECT_EQ(s.kappa, 0.95);
   EXPECT_EQ(s.tau, 0.6);

@@ -300,7 +300,7 @@ TEST(Sweep, BadInputIsNamed) {
            {"sweep --scenes chain --methods a2 --shard 5/4" + out, "--shard: expected i/N"},
            {"sweep --scenes nowhere --methods a2" + out, "nowhere.json: cannot open"},
            {"sweep --methods a2" + out, "no scenes"},
-           {"sweep --scenes chain --methods a2:preset=4-medium" + out, "chain, a2:preset=4-medium: preset"},
+           {"sweep --scenes chain --methods a2:preset=4-medium" + out, "a2:preset=4-medium\": preset: presets set"},
            {"sweep --scenes chain --methods bullet:kappa=1" + out, "the Bullet peer takes h, it and gyro"},
            {"chart " + (d / "none.jsonl").string() + " -o " + d.string(), "cannot open"},
            {"chart assets/scenes/chain.json -o " + d.string(), "not a JSON record"},

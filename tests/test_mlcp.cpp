@@ -116,7 +116,7 @@ TEST(DirectSolver, SolvesEveryStepOfRandomPiles) {
   for (int t = 0; t < 30; ++t) {
     const Scene s = randomPile(g, 2 + t % 5);
     SolverOverrides o;
-    o.algorithm = Algorithm::A1;
+    o.set(&SolverSettings::algorithm, Algorithm::A1);
     World w(s.model, resolve(o), s.initial);
     for (int n = 0; n < 120; ++n) {
       const StepReport& r = w.step();
@@ -240,7 +240,7 @@ TEST(IterativeSolver, ConvergesTowardsTheDirectSolution) {
   for (int t = 0; t < 20; ++t) {
     const Scene s = randomPile(g, 2 + t % 5);
     SolverOverrides o;
-    o.algorithm = Algorithm::A2;
+    o.set(&SolverSettings::algorithm, Algorithm::A2);
     const SolverSettings st = resolve(o);
     World w(s.model, st, s.initial);
     for (int n = 0; n < 40 + 3 * t; ++n) w.step();

@@ -344,8 +344,9 @@ TEST(SceneBuilder, JointOverlaysMarkAnchorsAndArms) {
 
 TEST(SceneBuilder, HudSaysSceneSettingsTimeAndCost) {
   const Scene s = scene("stack.json");
-  SolverSettings a5;
-  a5.algorithm = Algorithm::A5;
+  SolverOverrides o;
+  o.set(&SolverSettings::algorithm, Algorithm::A5);
+  SolverSettings a5 = resolve(o);  // a5's own defaults (blocks on)
   a5.substeps = 4;
   a5.iterations = 2;
   a5.kappa = 1.1;
@@ -353,13 +354,13 @@ TEST(SceneBuilder, HudSaysSceneSettingsTimeAndCost) {
   const std::string line = settingsLine(a5);
   for (const char* part : {"a5", "n=4", "m=2", "κ=1.1", "τ=0.9", "h=1/60"})
     EXPECT_NE(line.find(part), std::string::npos) << line << " lacks " << part;
-  EXPECT_EQ(shortSettingsLine(a5), "a5 n=4 m=2 κ=1.1 τ=0.9");
+  EXPECT_EQ(settingsLine(a5, LineDetail::Brief), "a5 n=4 m=2 κ=1.1 τ=0.9");
   SolverSettings a2;
   a2.iterations = 4;
-  EXPECT_EQ(shortSettingsLine(a2), "a2 m=4");
+  EXPECT_EQ(settingsLine(a2, LineDetail::Brief), "a2 m=4");
   a2.warmStart = a2.splitImpulse = true;
-  EXPECT_EQ(shortSettingsLine(a2), "a2 m=4 warm split");
-  EXPECT_NE(settingsLine(a2).find("  warm  split"), std::string::npos) << settingsLine(a2);
+  EXPECT_EQ(settingsLine(a2, LineDetail::Brief), "a2 m=4 warm split");
+  EXPECT_NE(settingsLine(a2, LineDetail::Hud).find("  warm  split"), std::string::npos) << settingsLine(a2, LineDetail::Hud);
   a2.warmStart = a2.splitImpulse = false;
   HudInfo hud;
   hud.scene = sceneLine(s);
@@ -477,26 +478,26 @@ TEST(CompareSpecs, TheIssueExampleAndEveryKey) {
   auto specs = parseCompareSpecs("a2:m=4,a5:n=4");
   ASSERT_EQ(specs.size(), 2u);
   EXPECT_EQ(specs[0].text, "a2:m=4");
-  EXPECT_EQ(*specs[0].overrides.algorithm, Algorithm::A2);
-  EXPECT_EQ(*specs[0].overrides.iterations, 4);
-  EXPECT_EQ(*specs[1].overrides.algorithm, Algorithm::A5);
-  EXPECT_EQ(*specs[1].overrides.substeps, 4);
-  EXPECT_FALSE(specs[1].overrides.iterations);
+  EXPECT_EQ(*specs[0].overrides.algorithm(), Algorithm::A2);
+  EXPECT_EQ(*specs[0].overrides.get(&SolverSettings::iterations), 4);
+  EXPECT_EQ(*specs[1].overrides.algorithm(), Algorithm::A5);
+  EXPECT_EQ(*specs[1].overrides.get(&SolverSettings::substeps), 4);
+  EXPECT_FALSE(specs[1].overrides.get(&SolverSettings::iterations));
 
   specs = parseCompareSpecs("a1, a5:n=8:m=2:kappa=1.1:tau=0.9:warm=on:split=on ,a2:omega=1.3;tol=1e-4;dt=0.01,a3:preset=4-hard");
   ASSERT_EQ(specs.size(), 4u);
-  EXPECT_EQ(*specs[0].overrides.algorithm, Algorithm::A1);
+  EXPECT_EQ(*specs[0].overrides.algorithm(), Algorithm::A1);
   const SolverOverrides& a5 = specs[1].overrides;
-  EXPECT_EQ(*a5.substeps, 8);
-  EXPECT_EQ(*a5.iterations, 2);
-  EXPECT_DOUBLE_EQ(*a5.kappa, 1.1);
-  EXPECT_DOUBLE_EQ(*a5.tau, 0.9);
-  EXPECT_TRUE(*a5.warmStart);
-  EXPECT_TRUE(*a5.splitImpulse);
-  EXPECT_DOUBLE_EQ(*specs[2].overrides.omega, 1.3);
-  EXPECT_DOUBLE_EQ(*specs[2].overrides.tolerance, 1e-4);
-  EXPECT_DOUBLE_EQ(*specs[2].overrides.dt, 0.01);
-  EXPECT_EQ(*specs[3].overrides.preset, "4-hard");
+  EXPECT_EQ(*a5.get(&SolverSettings::substeps), 8);
+  EXPECT_EQ(*a5.get(&SolverSettings::iterations), 2);
+  EXPECT_DOUBLE_EQ(*a5.get(&SolverSettings::kappa), 1.1);
+  EXPECT_DOUBLE_EQ(*a5.get(&SolverSettings::tau), 0.9);
+  EXPECT_TRUE(*a5.get(&SolverSettings::warmStart));
+  EXPECT_TRUE(*a5.get(&SolverSettings::splitImpulse));
+  EXPECT_DOUBLE_EQ(*specs[2].overrides.get(&SolverSettings::omega), 1.3);
+  EXPECT_DOUBLE_EQ(*specs[2].overrides.get(&SolverSettings::tolerance), 1e-4);
+  EXPECT_DOUBLE_EQ(*specs[2].overrides.get(&SolverSettings::dt), 0.01);
+  EXPECT_EQ(*specs[3].overrides.preset(), "4-hard");
 }
 
 TEST(CompareSpecs, BadSpecsSayWhatIsWrong) {

@@ -35,8 +35,8 @@ std::shared_ptr<const Scene> weldedBeam() {
 
 SolverSettings settings(Algorithm a, bool warm = false) {
   SolverOverrides o;
-  o.algorithm = a;
-  o.warmStart = warm;
+  o.set(&SolverSettings::algorithm, a);
+  o.set(&SolverSettings::warmStart, warm);
   return resolve(o);
 }
 
@@ -116,7 +116,7 @@ TEST(RenderSession, HudNamesTheSceneOrLabelsThePanels) {
   DrawList dl = lone.drawList(0);
   ASSERT_EQ(dl.hud.size(), 3u);
   EXPECT_EQ(dl.hud[0].text, "stack: 5 bodies, 0 joints");
-  EXPECT_EQ(dl.hud[1].text, settingsLine(settings(Algorithm::A2)));
+  EXPECT_EQ(dl.hud[1].text, settingsLine(settings(Algorithm::A2), LineDetail::Hud));
   EXPECT_EQ(dl.hud[2].text, "t = 0.500 s");
   EXPECT_TRUE(dl.label.empty());
   Look look = lone.look();

@@ -77,9 +77,9 @@ TEST(SceneAssets, AllLoadWithExpectedCounts) {
     EXPECT_FALSE(s.description.empty());
     ASSERT_FALSE(s.cameras.empty());
     EXPECT_EQ(s.cameras[0].name, "default");
-    EXPECT_TRUE(s.solver.algorithm.has_value());
-    EXPECT_EQ(s.solver.dt, 1.0 / 60.0);
-    EXPECT_FALSE(s.solver.iterations.has_value());  // each algorithm's own default applies
+    EXPECT_TRUE(s.solver.algorithm().has_value());
+    EXPECT_EQ(s.solver.get(&SolverSettings::dt), 1.0 / 60.0);
+    EXPECT_FALSE(s.solver.get(&SolverSettings::iterations).has_value());  // each algorithm's own default applies
     EXPECT_TRUE(s.initial.finite());
     for (const Body& b : s.model.bodies) {
       if (!b.isStatic) {
@@ -329,7 +329,7 @@ TEST(SceneErrors, SolverSettingsComeFromTheTable) {
     }
     std::string extra = "\"solver\": {\"" + key + "\": " + good + "}";
     const Scene ok = parse(scene(kBall, extra));
-    EXPECT_TRUE(spec.isSet(ok.solver)) << key;
+    EXPECT_TRUE(ok.solver.has(spec)) << key;
     extra = "\"solver\": {\"" + key + "\": " + bad + "}";
     const std::string expected = spec.kind == SettingKind::Flag ? "true or false" : spec.expected();
     expectError(scene(kBall, extra), "solver." + key, {"expected " + expected});
@@ -450,7 +450,7 @@ TEST(SceneFrames, DefaultsAndOrientation) {
   EXPECT_EQ(b.group, -1);
   EXPECT_NEAR(b.mass, 8000, 1e-9);  // density 1000
   EXPECT_NEAR(angleBetween(s.initial.bodies[0].q, Quat::Identity()), 0, 1e-15);
-  EXPECT_FALSE(s.solver.algorithm.has_value());
+  EXPECT_FALSE(s.solver.algorithm().has_value());
   EXPECT_TRUE(s.cameras.empty());
 }
 
@@ -495,18 +495,18 @@ TEST(SceneFrames, SolverAndCameras) {
       "preset": "4-medium"}, "gravity": [0, 0, -1],
       "cameras": [{"name": "default", "target": [1, 2, 3], "yaw": -10, "pitch": 45, "distance": 7, "fov": 60,
                    "follow": "ball"}, {"name": "top"}])"));
-  EXPECT_EQ(s.solver.algorithm, Algorithm::A4);
-  EXPECT_EQ(s.solver.dt, 0.01);
-  EXPECT_EQ(s.solver.substeps, 8);
-  EXPECT_EQ(s.solver.iterations, 2);
-  EXPECT_EQ(s.solver.omega, 1.3);
-  EXPECT_EQ(s.solver.tolerance, 0.0);
-  EXPECT_EQ(s.solver.kappa, 1.1);
-  EXPECT_EQ(s.solver.tau, 0.9);
-  EXPECT_EQ(s.solver.slop, 0.01);
-  EXPECT_EQ(s.solver.warmStart, true);
-  EXPECT_EQ(s.solver.blockSolve, false);
-  EXPECT_EQ(s.solver.preset, "4-medium");
+  EXPECT_EQ(s.solver.algorithm(), Algorithm::A4);
+  EXPECT_EQ(s.solver.get(&SolverSettings::dt), 0.01);
+  EXPECT_EQ(s.solver.get(&SolverSettings::substeps), 8);
+  EXPECT_EQ(s.solver.get(&SolverSettings::iterations), 2);
+  EXPECT_EQ(s.solver.get(&SolverSettings::omega), 1.3);
+  EXPECT_EQ(s.solver.get(&SolverSettings::tolerance), 0.0);
+  EXPECT_EQ(s.solver.get(&SolverSettings::kappa), 1.1);
+  EXPECT_EQ(s.solver.get(&SolverSettings::tau), 0.9);
+  EXPECT_EQ(s.solver.get(&SolverSettings::slop), 0.01);
+  EXPECT_EQ(s.solver.get(&SolverSettings::warmStart), true);
+  EXPECT_EQ(s.solver.get(&SolverSettings::blockSolve), false);
+  EXPECT_EQ(s.solver.preset(), "4-medium");
   EXPECT_EQ(s.model.gravity, Vec3(0, 0, -1));
   ASSERT_EQ(s.cameras.size(), 2u);
   EXPECT_EQ(s.cameras[0].target, Vec3(1, 2, 3));
@@ -763,7 +763,7 @@ TEST(SceneCriteria, EveryPartIsRead) {
   EXPECT_EQ(c.reference->kind, SceneReference::Kind::Converged);
   EXPECT_EQ(c.reference->method, "a1:h=1/960");
   EXPECT_EQ(c.reference->change, 0.05);
-  EXPECT_EQ(c.with.gyroscopic, "implicit");
+  EXPECT_EQ(c.with.get(&SolverSettings::gyroscopic), Gyroscopic::Implicit);
   ASSERT_EQ(c.pass.size(), 2u);
   EXPECT_EQ(c.pass[0], std::make_pair(std::string("penetration"), 0.01));
   ASSERT_TRUE(c.moving && c.stayIn && c.turns);

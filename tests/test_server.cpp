@@ -233,8 +233,8 @@ TEST(Server, BadParametersNameTheParameter) {
       {s5 + "/settings", R"({"panel": 1, "settings": {"n": 4}})", "panel: expected an integer in [0, 0], got 1"},
       {s5 + "/settings", R"({"method": "a5:kappa=0"})", "method: \"a5:kappa=0\": kappa: expected a number in (0, 10]"},
       {s5 + "/settings", R"({})", "method, settings: give a method or settings"},
-      {s2 + "/settings", R"({"settings": {"kappa": 0.9}})", "--kappa/--tau: a2 has no κ or τ"},
-      {s2 + "/settings", R"({"settings": {"n": 4}})", "a2 does not sub-step"},
+      {s2 + "/settings", R"({"settings": {"kappa": 0.9}})", "--kappa: a2 does not use it (a3, a4, a5 do)"},
+      {s2 + "/settings", R"({"settings": {"n": 4}})", "--substeps: a2 does not use it"},
       // panels and scene
       {s5 + "/panels", R"({"methods": ""})", "methods: an empty method"},
       {s5 + "/panels", R"({"methods": [1]})", "methods: expected method specs as strings, got 1"},

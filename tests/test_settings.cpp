@@ -1,9 +1,13 @@
-// The solver settings' table: one range per setting for scene files, the command line and
-// method specs; method specs with value lists; resolve() and Havok's presets.
+// The settings schema: one row per setting (physics/settings.h) for scene files, the command line,
+// method specs and JSON, each value read back as written; which algorithms read a setting; method
+// specs with value lists; resolve() and Havok's presets.
 #include "physics/settings.h"
+#include "physics/settings_json.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <random>
 #include <set>
 
 using namespace substep;
@@ -23,6 +27,7 @@ std::string errorOf(const std::string& spec) {
 
 TEST(SettingTable, EveryFieldOnceWithAFlagAndHelp) {
   std::set<std::string> keys, flags, aliases;
+  std::set<size_t> fields;
   for (const SettingSpec& s : settingTable()) {
     EXPECT_TRUE(keys.insert(s.key).second) << s.key;
     EXPECT_TRUE(flags.insert(s.flag).second) << s.flag;
@@ -33,19 +38,137 @@ TEST(SettingTable, EveryFieldOnceWithAFlagAndHelp) {
     EXPECT_GT(std::string(s.help).size(), 10u) << s.key;
     EXPECT_EQ(findSetting(s.key), &s);
     EXPECT_EQ(findSetting(s.flag), &s);
+    EXPECT_EQ(&settingTable()[s.index], &s);
+    if (s.resolved()) EXPECT_EQ(&settingOf(s.field), &s) << s.key << ": two rows set one field";
+    EXPECT_NE(s.takes.text(), "") << s.key << ": no algorithm reads it";
   }
-  // Setting each from text and reading it back covers every field of SolverOverrides.
-  SolverOverrides o;
+  // Every field of SolverSettings has its row: the binding below names each field once (a new
+  // field breaks its count), and the table holds as many resolved rows.
+  SolverSettings st;
+  auto& [algorithm, dt, n, m, omega, tol, kappa, tau, slop, warm, block, cblock, split, motor, friction, spec, rest,
+         threshold, islands, jacobians, gyro, ch, cd, jh, jd, push, rows, budget] = st;
+  const size_t bound = 28;
+  (void)algorithm, (void)dt, (void)n, (void)m, (void)omega, (void)tol, (void)kappa, (void)tau, (void)slop, (void)warm;
+  (void)block, (void)cblock, (void)split, (void)motor, (void)friction, (void)spec, (void)rest, (void)threshold;
+  (void)islands, (void)jacobians, (void)gyro, (void)ch, (void)cd, (void)jh, (void)jd, (void)push, (void)rows, (void)budget;
+  size_t resolvedRows = 0;
+  for (const SettingSpec& s : settingTable()) resolvedRows += s.resolved();
+  EXPECT_EQ(resolvedRows, bound);
+}
+
+// Every value a setting can take, written by each writer of the schema, is read back the same.
+TEST(Schema, AValueWrittenIsReadBackTheSame) {
+  std::mt19937 rng(7);
+  int checked = 0;
   for (const SettingSpec& s : settingTable()) {
-    const std::string v = s.kind == SettingKind::Flag     ? "on"
-                          : s.kind == SettingKind::Choice ? s.choices.front()
-                                                          : numberText(s.range.hi);
-    if (s.kind == SettingKind::Real && s.range.hiOpen) continue;
-    s.setText(o, v);
-    EXPECT_EQ(s.valueText(o), v) << s.key;
+    std::vector<double> values;
+    switch (s.kind) {
+      case SettingKind::Flag: values = {0, 1}; break;
+      case SettingKind::Choice:
+        for (size_t i = 0; i < s.choices.size(); ++i) values.push_back(static_cast<double>(i));
+        break;
+      case SettingKind::Integer:
+        values = {s.range.lo, std::min(s.range.hi, s.range.lo + 1), s.range.hi};
+        break;
+      case SettingKind::Real: {
+        const double lo = std::max(s.range.lo, -1e6), hi = std::min(s.range.hi, 1e6);
+        for (int k = 0; k < 20; ++k) values.push_back(std::uniform_real_distribution<double>(lo, hi)(rng));
+        if (!s.range.loOpen) values.push_back(s.range.lo);
+        if (!s.range.hiOpen) values.push_back(s.range.hi);
+        values.push_back(1.0 / 60);
+        values.erase(std::remove_if(values.begin(), values.end(), [&](double v) { return !s.range.contains(v); }),
+                     values.end());
+        break;
+      }
+    }
+    for (const double v : values) {
+      ++checked;
+      // As text (method specs, the command line): the shortest text that reads back.
+      EXPECT_EQ(s.parse(s.text(v)), v) << s.key << " " << s.text(v);
+      // As JSON (records, the server).
+      SolverOverrides o;
+      o.set(s, v);
+      const SolverOverrides back = overridesFromJson(overridesJson(o), "x");
+      EXPECT_TRUE(back == o) << s.key << " " << overridesJson(o).dump();
+      // As a method spec.
+      if (std::string(s.key) != "algorithm" && std::string(s.key) != "preset") {
+        SolverOverrides a;
+        const Algorithm algo = [&] {
+          for (Algorithm x : kAlgorithms)
+            if (s.takes.has(x)) return x;
+          return Algorithm::A2;
+        }();
+        a.set(&SolverSettings::algorithm, algo);
+        a.set(s, v);
+        const std::vector<MethodSpec> spec = expandMethodSpec(a.specText());
+        ASSERT_EQ(spec.size(), 1u) << a.specText();
+        EXPECT_TRUE(spec[0].overrides == a) << a.specText();
+        // Resolved, and out as the JSON of resolved settings.
+        if (s.resolved()) {
+          const SolverSettings r = resolve(a);
+          EXPECT_EQ(s.get(r), v) << s.key;
+          const SolverOverrides fromResolved = overridesFromJson(settingsJson(r), "x");
+          EXPECT_EQ(s.get(resolve(fromResolved)), v) << s.key;
+          EXPECT_EQ(settingsJson(resolve(fromResolved)), settingsJson(r)) << s.key;
+        }
+      }
+    }
   }
-  EXPECT_FALSE(o.empty());
-  EXPECT_TRUE(SolverOverrides{}.empty());
+  std::printf("%d values of %zu settings written and read back\n", checked, settingTable().size());
+}
+
+// Every output of the schema names every key it should.
+TEST(Schema, EveryOutputNamesEveryKey) {
+  const SolverSettings st;
+  const nlohmann::json resolved = settingsJson(st), schema = schemaJson();
+  ASSERT_EQ(schema.size(), settingTable().size());
+  for (const SettingSpec& s : settingTable()) {
+    EXPECT_EQ(resolved.contains(s.key), s.resolved()) << s.key;
+    EXPECT_EQ(schema[s.index]["key"], s.key);
+    EXPECT_FALSE(schema[s.index]["takes"].empty()) << s.key;
+    EXPECT_EQ(schema[s.index]["defaults"].size(), 6u) << s.key;
+  }
+  // The complete line names every setting the algorithm reads: numbers and choices always, flags when on.
+  for (Algorithm a : kAlgorithms) {
+    SolverOverrides o;
+    o.set(&SolverSettings::algorithm, a);
+    SolverSettings r = resolve(o);
+    for (const SettingSpec& s : settingTable())
+      if (s.kind == SettingKind::Flag && s.resolved()) s.put(r, 1);
+    const std::string line = settingsLine(r);
+    for (const SettingSpec& s : settingTable()) {
+      if (!s.resolved() || std::string(s.key) == "algorithm") continue;
+      std::string item = s.line;
+      item = item.substr(0, item.find("%s"));
+      EXPECT_EQ(line.find(item) != std::string::npos, s.takes.has(a)) << algorithmName(a) << " " << s.key << ": " << line;
+    }
+  }
+}
+
+// Each algorithm's defaults are the schema's, and a value given for a setting the algorithm
+// does not read is refused when given explicitly, left out when a scene gives it.
+TEST(Schema, DefaultsAndWhichAlgorithmsReadASetting) {
+  for (Algorithm a : kAlgorithms) {
+    SolverOverrides o;
+    o.set(&SolverSettings::algorithm, a);
+    const SolverSettings r = resolve(o);
+    for (const SettingSpec& s : settingTable())
+      if (s.resolved() && std::string(s.key) != "algorithm") EXPECT_EQ(s.get(r), s.defaultFor(a)) << s.key;
+  }
+  SolverOverrides scene, cl;
+  scene.set(&SolverSettings::kappa, 0.85);  // pyramid.json's, for a5
+  cl.set(&SolverSettings::algorithm, Algorithm::A2);
+  EXPECT_EQ(resolveFor(scene, cl).kappa, 1.0);  // a2 leaves it
+  cl.set(&SolverSettings::kappa, 0.9);
+  try {
+    resolveFor(scene, cl);
+    ADD_FAILURE() << "kappa given to a2";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), "kappa: a2 does not use it (a3, a4, a5 do); leave it out, or choose that algorithm");
+  }
+  EXPECT_NE(errorOf("a5:omega=1.3").find("omega: a5 does not use it (a2 does)"), std::string::npos) << errorOf("a5:omega=1.3");
+  EXPECT_NE(errorOf("a1:split=on").find("split_impulse: a1 does not use it"), std::string::npos) << errorOf("a1:split=on");
+  EXPECT_EQ(errorOf("a2:split=on"), "");
 }
 
 TEST(SettingTable, TextIsParsedWholeAndWithinRange) {
@@ -53,38 +176,34 @@ TEST(SettingTable, TextIsParsedWholeAndWithinRange) {
   SolverOverrides o;
   for (const char* bad : {"nan", "inf", "-inf", "1e999", "0", "10.5", "", "1x", "0x1p3", " 1"}) {
     try {
-      kappa.setText(o, bad);
+      o.setText(kappa, bad);
       ADD_FAILURE() << "kappa accepted \"" << bad << "\"";
     } catch (const std::invalid_argument& e) {
       EXPECT_EQ(std::string(e.what()), std::string("expected a number in (0, 10], got \"") + bad + "\"");
     }
   }
-  kappa.setText(o, "0.85");
-  EXPECT_DOUBLE_EQ(*o.kappa, 0.85);
+  o.setText(kappa, "0.85");
+  EXPECT_DOUBLE_EQ(*o.get(&SolverSettings::kappa), 0.85);
   const SettingSpec& n = *findSetting("n");
-  EXPECT_THROW(n.setText(o, "2.5"), std::invalid_argument);
-  EXPECT_THROW(n.setNumber(o, 1001), std::invalid_argument);
-  n.setNumber(o, 8);
-  EXPECT_EQ(*o.substeps, 8);
-  EXPECT_THROW(findSetting("warm")->setText(o, "maybe"), std::invalid_argument);
-  EXPECT_THROW(findSetting("algorithm")->setText(o, "a6"), std::invalid_argument);
+  EXPECT_THROW(o.setText(n, "2.5"), std::invalid_argument);
+  EXPECT_THROW(o.set(n, 1001), std::invalid_argument);
+  o.set(n, 8);
+  EXPECT_EQ(*o.get(&SolverSettings::substeps), 8);
+  EXPECT_THROW(o.setText(*findSetting("warm"), "maybe"), std::invalid_argument);
+  EXPECT_THROW(o.setText(*findSetting("algorithm"), "a6"), std::invalid_argument);
 }
 
-// Overrides built in code are checked by resolve() against the same table.
-TEST(SettingTable, ResolveChecksEveryValue) {
+// Values set in code are checked against the same table when set.
+TEST(SettingTable, EveryValueIsCheckedWhenSet) {
   SolverOverrides o;
-  o.algorithm = Algorithm::A5;
-  o.kappa = 850;
   try {
-    resolve(o);
+    o.set(&SolverSettings::kappa, 850);
     ADD_FAILURE();
   } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()), "kappa: expected a number in (0, 10], got \"850\"");  // as valueText gives it
+    EXPECT_EQ(std::string(e.what()), "expected a number in (0, 10], got 850");
   }
-  o.kappa.reset();
-  o.dt = 1e-300;
-  EXPECT_THROW(resolve(o), std::invalid_argument);
-  o.dt = 0.01;
+  EXPECT_THROW(o.set(&SolverSettings::dt, 1e-300), std::invalid_argument);
+  o.set(&SolverSettings::dt, 0.01);
   EXPECT_EQ(resolve(o).dt, 0.01);
 }
 
@@ -92,16 +211,16 @@ TEST(MethodSpecs, ValueListsNameAGrid) {
   const auto specs = expandMethodSpec("a5:n=1|2|4|8:m=1");
   ASSERT_EQ(specs.size(), 4u);
   EXPECT_EQ(specs[2].text, "a5:n=4:m=1");
-  EXPECT_EQ(*specs[2].overrides.substeps, 4);
-  EXPECT_EQ(*specs[2].overrides.iterations, 1);
+  EXPECT_EQ(*specs[2].overrides.get(&SolverSettings::substeps), 4);
+  EXPECT_EQ(*specs[2].overrides.get(&SolverSettings::iterations), 1);
   const auto grid = expandMethodSpec("a3:n=2|4:kappa=0.9|1");  // the last key varies fastest
   ASSERT_EQ(grid.size(), 4u);
   EXPECT_EQ(grid[1].text, "a3:n=2:kappa=1");
   EXPECT_EQ(grid[2].text, "a3:n=4:kappa=0.9");
   const auto list = parseMethodSpecs("a2:m=4, a5:n=4:warm=on");
   ASSERT_EQ(list.size(), 2u);
-  EXPECT_TRUE(*list[1].overrides.warmStart);
-  EXPECT_EQ(*list[0].overrides.algorithm, Algorithm::A2);
+  EXPECT_TRUE(*list[1].overrides.get(&SolverSettings::warmStart));
+  EXPECT_EQ(*list[0].overrides.algorithm(), Algorithm::A2);
 }
 
 TEST(MethodSpecs, ErrorsNameTheSpecAndTheKey) {
@@ -121,12 +240,12 @@ TEST(MethodSpecs, ErrorsNameTheSpecAndTheKey) {
 // Time steps are written as fractions in specs and on the command line; only reals take them.
 TEST(SettingTable, RealsMayBeFractions) {
   SolverOverrides o;
-  findSetting("h")->setText(o, "1/120");
-  EXPECT_DOUBLE_EQ(*o.dt, 1.0 / 120);
+  o.setText(*findSetting("h"), "1/120");
+  EXPECT_DOUBLE_EQ(*o.get(&SolverSettings::dt), 1.0 / 120);
   for (const char* bad : {"1/0", "1/", "/60", "1/60/2", "1/x", "1e308/1e-308"})
-    EXPECT_THROW(findSetting("h")->setText(o, bad), std::invalid_argument) << bad;
-  EXPECT_THROW(findSetting("h")->setText(o, "2/1"), std::invalid_argument);  // 2 s: beyond (0, 1]
-  EXPECT_THROW(findSetting("n")->setText(o, "8/2"), std::invalid_argument);  // integers are whole numbers
+    EXPECT_THROW(o.setText(*findSetting("h"), bad), std::invalid_argument) << bad;
+  EXPECT_THROW(o.setText(*findSetting("h"), "2/1"), std::invalid_argument);  // 2 s: beyond (0, 1]
+  EXPECT_THROW(o.setText(*findSetting("n"), "8/2"), std::invalid_argument);  // integers are whole numbers
   const auto grid = expandMethodSpec("a1:h=1/60|1/120");
   ASSERT_EQ(grid.size(), 2u);
   EXPECT_EQ(grid[1].text, "a1:h=1/120");
@@ -140,11 +259,11 @@ TEST(MethodSpecs, TheBulletPeerTakesItsOwnSettings) {
   ASSERT_EQ(specs.size(), 3u);
   EXPECT_EQ(specs[0].peer, "bullet");
   EXPECT_EQ(specs[0].text, "bullet:it=10:h=1/120");
-  EXPECT_FALSE(specs[0].overrides.algorithm);
-  EXPECT_EQ(*specs[1].overrides.iterations, 20);
-  EXPECT_DOUBLE_EQ(*specs[1].overrides.dt, 1.0 / 120);
+  EXPECT_FALSE(specs[0].overrides.algorithm());
+  EXPECT_EQ(*specs[1].overrides.get(&SolverSettings::iterations), 20);
+  EXPECT_DOUBLE_EQ(*specs[1].overrides.get(&SolverSettings::dt), 1.0 / 120);
   EXPECT_EQ(specs[2].peer, "");
-  EXPECT_EQ(expandMethodSpec("bullet:gyro=none")[0].overrides.gyroscopic.value(), "none");
+  EXPECT_EQ(expandMethodSpec("bullet:gyro=none")[0].overrides.get(&SolverSettings::gyroscopic).value(), Gyroscopic::None);
   EXPECT_NE(errorOf("bullet:kappa=0.9").find("the Bullet peer takes h, it and gyro; kappa"), std::string::npos)
       << errorOf("bullet:kappa=0.9");
   EXPECT_NE(errorOf("bullet:frob=1").find("unknown key \"frob\" (keys: h, it, gyro)"), std::string::npos);
@@ -154,14 +273,14 @@ TEST(MethodSpecs, TheBulletPeerTakesItsOwnSettings) {
 
 TEST(Presets, HavoksThreeStiffnesses) {
   SolverOverrides o;
-  o.algorithm = Algorithm::A4;
-  o.preset = "8-hard";
+  o.set(&SolverSettings::algorithm, Algorithm::A4);
+  o.setPreset("8-hard");
   const SolverSettings s = resolve(o);
   EXPECT_EQ(s.substeps, 8);
   EXPECT_EQ(s.iterations, 1);
   EXPECT_DOUBLE_EQ(s.tau, 0.9);
   EXPECT_DOUBLE_EQ(s.kappa, 1.1);
-  o.algorithm = Algorithm::A2;  // presets are sub-stepping settings
+  o.set(&SolverSettings::algorithm, Algorithm::A2);  // presets are sub-stepping settings
   EXPECT_THROW(resolve(o), std::invalid_argument);
 }
 

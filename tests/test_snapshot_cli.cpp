@@ -182,7 +182,7 @@ TEST(SnapshotCli, BadInputExitsWithStatus2) {
       {scene + "--at 1 --golden " + g.string() + " --threshold 300", "--threshold"},
       {scene + "--at 1 --golden " + g.string() + " --max-share 2", "--max-share"},
       {scene + "--at 1 --golden " + g.string() + " --size 8x8", "--size 8x8"},
-      {scene + "--at 1 --golden " + g.string() + " --kappa 0.5", "--kappa/--tau: a2 has no κ or τ; use --algo a3|a4|a5"},
+      {scene + "--at 1 --golden " + g.string() + " --kappa 0.5", "--kappa: a2 does not use it (a3, a4, a5 do)"},
       {scene + "--at 1 --golden " + g.string() + " --panels a9,a2", "unknown algorithm \"a9\""},
       {scene + "--at 1 --golden " + g.string() + " --diff x.png", "--diff: only with --compare"},
       {scene + "--at 1 --golden /proc/forbidden --update", "/proc/forbidden"},

@@ -40,7 +40,7 @@ RestResult rest(const std::string& file, const SolverOverrides& o, double second
 
 SolverOverrides algo(Algorithm a) {
   SolverOverrides o;
-  o.algorithm = a;
+  o.set(&SolverSettings::algorithm, a);
   return o;
 }
 
@@ -203,8 +203,8 @@ Watched watch(const std::string& file, const SolverOverrides& o, double seconds,
 // and moves 4 cm sideways at most.
 TEST(Pyramid, StandsUnderA5WithItsSceneSettings) {
   SolverOverrides o = algo(Algorithm::A5);
-  o.substeps = 4;
-  o.iterations = 1;
+  o.set(&SolverSettings::substeps, 4);
+  o.set(&SolverSettings::iterations, 1);
   const Watched r = watch("pyramid.json", o, 60);
   std::printf("pyramid, A5 n = 4, m = 1, kappa 0.85, tau 0, warm, contact blocks, 60 s: %s, sideways %.2f cm, "
               "%.2f cm from its pose at 1 s\n", r.failure.verdict().c_str(), r.failure.maxSideways * 100,
@@ -221,13 +221,13 @@ TEST(Pyramid, StandsUnderA5WithItsSceneSettings) {
 // told apart (physics/failure.h); these are collapses.
 TEST(Pyramid, CollapsesUnderA5WithoutItsSceneSettings) {
   SolverOverrides medium = algo(Algorithm::A5);
-  medium.preset = "4-medium";
+  medium.setPreset("4-medium");
   SolverOverrides mediumCold = medium;  // A5's own defaults, the scene's contact blocks kept
-  mediumCold.warmStart = false;
+  mediumCold.set(&SolverSettings::warmStart, false);
   SolverOverrides report = mediumCold;  // the report's A5 as it stands
-  report.contactBlocks = false;
+  report.set(&SolverSettings::contactBlocks, false);
   SolverOverrides cold = algo(Algorithm::A5);
-  cold.warmStart = false;
+  cold.set(&SolverSettings::warmStart, false);
   for (const auto& [label, o] : std::vector<std::pair<std::string, SolverOverrides>>{
            {"4-medium warm", medium}, {"4-medium cold", mediumCold}, {"4-medium cold, no contact blocks", report},
            {"kappa 0.85 tau 0 cold", cold}}) {
@@ -246,19 +246,19 @@ TEST(Pyramid, CollapsesUnderA5WithoutItsSceneSettings) {
 // contact blocks: collapse at 0.43, 0.75, 0.98, 2.3 s for m = 1, 2, 4, 8; m = 32 stands 5 s).
 TEST(Pyramid, OneMicroIterationIsWhatFails) {
   SolverOverrides plain = algo(Algorithm::A3);
-  plain.substeps = 1;
-  plain.dt = 1.0 / 240;
-  plain.iterations = 1;
-  plain.warmStart = false;
-  plain.kappa = 1;
-  plain.tau = 0.6;
+  plain.set(&SolverSettings::substeps, 1);
+  plain.set(&SolverSettings::dt, 1.0 / 240);
+  plain.set(&SolverSettings::iterations, 1);
+  plain.set(&SolverSettings::warmStart, false);
+  plain.set(&SolverSettings::kappa, 1);
+  plain.set(&SolverSettings::tau, 0.6);
   const Watched gs = watch("pyramid.json", plain, 3);
   std::vector<double> times;
   for (const int m : {1, 4, 32}) {
     SolverOverrides o = algo(Algorithm::A5);
-    o.preset = "4-medium";
-    o.warmStart = false;
-    o.iterations = m;
+    o.setPreset("4-medium");
+    o.set(&SolverSettings::warmStart, false);
+    o.set(&SolverSettings::iterations, m);
     const Watched r = watch("pyramid.json", o, m == 32 ? 5 : 3);
     std::printf("pyramid, A5 4-medium cold, m = %d: %s\n", m, r.failure.verdict().c_str());
     times.push_back(r.failure.collapseTime < 0 ? 1e9 : r.failure.collapseTime);
@@ -305,9 +305,9 @@ double outOfPlanePeak(const SolverOverrides& extra, int steps) {
 TEST(Pyramid, OutOfPlaneModeGrowsUnderOneWarmStartedSweep) {
   const double a5 = outOfPlanePeak({}, 60);
   SolverOverrides a3 = algo(Algorithm::A3), two, cold, kappa;
-  two.iterations = 2;
-  cold.warmStart = false;
-  kappa.kappa = 0.85;
+  two.set(&SolverSettings::iterations, 2);
+  cold.set(&SolverSettings::warmStart, false);
+  kappa.set(&SolverSettings::kappa, 0.85);
   const double g3 = outOfPlanePeak(a3, 60), g2 = outOfPlanePeak(two, 60), gc = outOfPlanePeak(cold, 60),
                gk = outOfPlanePeak(kappa, 60);
   std::printf("12-level pyramid, out-of-plane speed step 60 over step 2: A5 %.3g, A3 %.3g, two sweeps %.3g, cold %.3g, "
@@ -324,7 +324,7 @@ TEST(Pyramid, OutOfPlaneModeGrowsUnderOneWarmStartedSweep) {
 // here; `substep run assets/scenes/pyramid.json --algo soft --seconds 600` is the full run).
 TEST(SoftStep, HoldsThePyramid) {
   SolverOverrides o;
-  o.algorithm = Algorithm::Soft;
+  o.set(&SolverSettings::algorithm, Algorithm::Soft);
   const Watched r = watch("pyramid.json", o, 60);
   std::printf("pyramid, soft n = 4, 60 s: %s, sideways %.2f cm, %.2f cm from its pose at 1 s\n",
               r.failure.verdict().c_str(), r.failure.maxSideways * 100, r.afterSettle * 100);

@@ -54,7 +54,7 @@ std::vector<std::string> sceneNames() {
 
 // The methods every scene runs under (as `substep run SCENE --algo X`: the scene's solver block
 // under the method), and the extensions the small scenes run under too.
-const std::vector<std::string> kAlgorithms = {"a1", "a2", "a3", "a4", "a5", "soft"};
+const std::vector<std::string> kAlgorithmNames = {"a1", "a2", "a3", "a4", "a5", "soft"};
 const std::vector<std::string> kSmallScenes = {"stack", "chain", "pyramid", "ragdoll_pile", "shapes", "mass_ratio"};
 const std::vector<std::string> kExtensions = {
     "a2:warm=on:split=on", "a2:omega=1.3:tol=0", "a3:warm=on",          "a4:cblock=on",
@@ -64,9 +64,7 @@ const std::vector<std::string> kExtensions = {
 // What one run ended with.
 json runOnce(const Scene& scene, const std::string& method) {
   const MethodSpec m = expandMethodSpec(method).at(0);
-  SolverOverrides use = scene.solver.withCommandLine(m.overrides);
-  if (use.preset && !havokScaled(*m.overrides.algorithm)) use.preset.reset();
-  const SolverSettings s = resolve(use);
+  const SolverSettings s = resolveFor(scene.solver, m.overrides);
   World world(scene.model, s, scene.initial);
   json r;
   try {
@@ -105,7 +103,7 @@ TEST(Trajectories, BitIdenticalToTheTable) {
   int differ = 0, compared = 0;
   for (const std::string& name : sceneNames()) {
     const Scene scene = loadScene(std::string(SUBSTEP_SOURCE_DIR) + "/assets/scenes/" + name + ".json");
-    std::vector<std::string> methods = kAlgorithms;
+    std::vector<std::string> methods = kAlgorithmNames;
     if (std::find(kSmallScenes.begin(), kSmallScenes.end(), name) != kSmallScenes.end())
       methods.insert(methods.end(), kExtensions.begin(), kExtensions.end());
     for (const std::string& method : methods) {

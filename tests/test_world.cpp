@@ -16,8 +16,8 @@ Scene sceneFrom(const std::string& json) { return parseScene(json, "<test>", "."
 
 SolverSettings settingsFor(Algorithm a, int iterations = 0) {
   SolverOverrides o;
-  o.algorithm = a;
-  if (iterations) o.iterations = iterations;
+  o.set(&SolverSettings::algorithm, a);
+  if (iterations) o.set(&SolverSettings::iterations, iterations);
   return resolve(o);
 }
 
@@ -159,8 +159,8 @@ TEST(World, IslandsAreSeparateAndSolvingByIslandChangesNothing) {
   for (const char* file : {"pile.json", "ragdoll_pile.json"}) {
     const Scene s = loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + file);
     SolverOverrides o = s.solver;
-    o.algorithm = Algorithm::A5;
-    o.warmStart = true;
+    o.set(&SolverSettings::algorithm, Algorithm::A5);
+    o.set(&SolverSettings::warmStart, true);
     SolverSettings st = resolve(o);
     st.islands = true;
     World a(s.model, st, s.initial);
@@ -196,8 +196,8 @@ TEST_P(EveryAlgorithm, GyroscopicTermFlipsTheIntermediateAxis) {
       "shape": {"type": "box", "half_extents": [0.05, 0.2, 0.4]}, "angular_velocity": [0.01, 10, 0]}]})");
   for (const char* mode : {"none", "implicit", "explicit"}) {
     SolverOverrides o;
-    o.algorithm = GetParam();
-    o.gyroscopic = mode;
+    o.set(&SolverSettings::algorithm, GetParam());
+    o.setText(*findSetting("gyroscopic"), mode);
     World w(s.model, resolve(o), s.initial);
     const Vec3 I = s.model.bodies[0].inertia;
     auto L = [&] { const BodyState& b = w.state().bodies[0]; return Vec3(b.q * I.cwiseProduct(b.w)); };

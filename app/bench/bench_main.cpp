@@ -22,6 +22,7 @@
 #include "physics/constraints/joints.h"
 #include "physics/scene_file.h"
 #include "physics/settings.h"
+#include "physics/settings_json.h"
 #include "physics/world.h"
 
 #include <CLI/CLI.hpp>
@@ -74,49 +75,35 @@ enum class Engine { Substep, Bullet };
 struct Case {
   const char* id;          // its name for --algos
   const char* label;       // its name in the table
-  Engine engine;
-  Algorithm algorithm;     // substep cases
-  int substeps;            // n (A3-A5; ignored by A1/A2)
-  int iterations;          // A2: iteration cap; A3-A5: micro-iterations m; Bullet: solver iterations
+  const char* spec;        // the method (physics/settings.h); the scene gives only the time step
   bool byDefault;          // run when --algos is not given
-  bool stackSettings = false;  // κ 0.85, τ 0, warm started, contact blocks: what holds the pyramid (pyramid.json)
+  Engine engine() const { return std::string(spec).rfind(kBulletPeer, 0) == 0 ? Engine::Bullet : Engine::Substep; }
+  // Its settings at the scene's h: the method's own over the algorithm's defaults, so that the
+  // scene's solver block cannot change what a case means.
+  SolverSettings settings(double dt) const {
+    SolverOverrides o = expandMethodSpec(spec).at(0).overrides;
+    if (engine() == Engine::Bullet) o.set(&SolverSettings::algorithm, Algorithm::A2);  // n stays 1
+    o.set(&SolverSettings::dt, dt);
+    return resolve(o);
+  }
 };
 
 // Every case the benchmark knows, in table order. Adding one, or running one by default, is an
 // edit of one line here. Equal solver work: a2-m4 makes 4 Gauss-Seidel sweeps per step, as
-// a3/a4/a5 at n = 4 sub-steps of m = 1 sweep do.
+// a3/a4/a5 at n = 4 sub-steps of m = 1 sweep do. a5-stack has pyramid.json's settings, what holds
+// the pyramid.
 const std::vector<Case>& allCases() {
   static const std::vector<Case> list = {
-      //  id        label             engine           algorithm      n  m   default
-      {"a2",     "a2 (m=10)",      Engine::Substep, Algorithm::A2, 1, 10, true},
-      {"a2-m4",  "a2 (m=4)",       Engine::Substep, Algorithm::A2, 1, 4,  true},  // solver work of a3-a5 n=4 m=1
-      {"a3",     "a3 (n=4 m=1)",   Engine::Substep, Algorithm::A3, 4, 1,  true},
-      {"a4",     "a4 (n=4 m=1)",   Engine::Substep, Algorithm::A4, 4, 1,  true},
-      {"a5",     "a5 (n=4 m=1)",   Engine::Substep, Algorithm::A5, 4, 1,  true},
-      {"a5-stack", "a5 pyramid.json", Engine::Substep, Algorithm::A5, 4, 1, true, true},
-      {"soft",   "soft (n=4)",     Engine::Substep, Algorithm::Soft, 4, 1, true},
-      {"bullet", "bullet (10 it)", Engine::Bullet,  Algorithm::A2, 1, 10, true},
+      {"a2", "a2 (m=10)", "a2:m=10", true},
+      {"a2-m4", "a2 (m=4)", "a2:m=4", true},
+      {"a3", "a3 (n=4 m=1)", "a3:n=4:m=1", true},
+      {"a4", "a4 (n=4 m=1)", "a4:n=4:m=1", true},
+      {"a5", "a5 (n=4 m=1)", "a5:n=4:m=1", true},
+      {"a5-stack", "a5 pyramid.json", "a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", true},
+      {"soft", "soft (n=4)", "soft:n=4:m=1", true},
+      {"bullet", "bullet (10 it)", "bullet:it=10", true},
   };
   return list;
-}
-
-
-// The solver settings of a substep case: the case's algorithm, n and m with the algorithm's other
-// defaults (resolve()); only the time step comes from the scene, so the scene's own solver block
-// cannot change what a case means.
-SolverSettings caseSettings(const Case& c, double dt) {
-  SolverOverrides o;
-  o.algorithm = c.algorithm;
-  o.dt = dt;
-  if (subSteps(c.algorithm)) o.substeps = c.substeps;
-  o.iterations = c.iterations;
-  if (c.stackSettings) {
-    o.kappa = 0.85;
-    o.tau = 0.0;
-    o.warmStart = true;
-    o.contactBlocks = true;
-  }
-  return resolve(o);
 }
 
 // --- one run ----------------------------------------------------------------------------------
@@ -368,7 +355,7 @@ void printTables(const std::vector<Result>& results, int steps, std::ostream& ou
   out << line;
   for (const Result& r : results) {
     const Run& m = r.median;
-    const bool ours = r.c->engine == Engine::Substep;
+    const bool ours = r.c->engine() == Engine::Substep;
     auto stage = [&](double s) { return ours ? fmt("%7.3f", s * 1e3) : std::string("      -"); };
     const std::string vs = std::isnan(r.ratio) ? "-" : fmt("%.2fx", r.ratio);
     std::snprintf(line, sizeof line, "%-12s %-15s %s %s %s %s %9.3f %7.1f %9s\n", r.scene.c_str(), r.c->label,
@@ -532,8 +519,8 @@ ScalingRun scalingRunInChild(const Case& c, int boxes, int steps) {
       lim.maxBodies = boxes + 1;
       const Scene scene = parseScene(pileSceneText(boxes), "pile", ".", lim);
       std::vector<double> times(static_cast<size_t>(steps));
-      Run r = c.engine == Engine::Substep ? runSubstep(scene, caseSettings(c, 1.0 / 60.0), steps, times)
-                                          : runBullet(scene, 1.0 / 60.0, c.iterations, steps, times);
+      Run r = c.engine() == Engine::Substep ? runSubstep(scene, c.settings(1.0 / 60.0), steps, times)
+                                          : runBullet(scene, 1.0 / 60.0, c.settings(1.0 / 60).iterations, steps, times);
       const double out[3] = {r.total, static_cast<double>(r.contacts), r.finite ? 1.0 : 0.0};
       const ssize_t w = write(fd[1], out, sizeof out);
       _exit(w == static_cast<ssize_t>(sizeof out) ? 0 : 1);
@@ -661,16 +648,16 @@ int bench(const Options& opt) {
     names.push_back(std::filesystem::path(path).stem().string());
   }
   for (size_t s = 0; s < scenes.size(); ++s) {
-    const double dt = scenes[s].solver.dt.value_or(1.0 / 60.0);
+    const double dt = scenes[s].solver.get(&SolverSettings::dt).value_or(1.0 / 60.0);
     for (const Case* c : cases) {
       Result r;
       r.scene = names[s];
       r.sceneIndex = s;
       r.model = &scenes[s].model;
       r.c = c;
-      if (c->engine == Engine::Substep) {
+      if (c->engine() == Engine::Substep) {
         try {
-          r.settings = caseSettings(*c, dt);
+          r.settings = c->settings(dt);
           World probe(scenes[s].model, r.settings, scenes[s].initial);
         } catch (const std::invalid_argument& e) {
           throw UsageError(std::string("case ") + c->id + " on " + names[s] + ": " + e.what());
@@ -683,7 +670,7 @@ int bench(const Options& opt) {
           continue;
         }
         r.settings.dt = dt;
-        r.settings.iterations = c->iterations;
+        r.settings.iterations = c->settings(dt).iterations;
       }
       results.push_back(std::move(r));
     }
@@ -707,8 +694,8 @@ int bench(const Options& opt) {
   for (int rep = 0; rep < opt.repeat; ++rep) {
     for (Result& r : results) {
       const Scene& scene = scenes[r.sceneIndex];
-      Run run = r.c->engine == Engine::Substep ? runSubstep(scene, r.settings, opt.steps, stepTimes)
-                                               : runBullet(scene, r.settings.dt, r.c->iterations, opt.steps, stepTimes);
+      Run run = r.c->engine() == Engine::Substep ? runSubstep(scene, r.settings, opt.steps, stepTimes)
+                                               : runBullet(scene, r.settings.dt, r.settings.iterations, opt.steps, stepTimes);
       ++done;
       std::fprintf(stderr, "[%d/%d] %-8s %-15s repeat %d/%d: %.3f ms/step\n", done, totalRuns, r.scene.c_str(),
                    r.c->label, rep + 1, opt.repeat, run.total * 1e3);
@@ -729,7 +716,7 @@ int bench(const Options& opt) {
   }
   for (Result& r : results) {
     for (const Result& b : results)
-      if (b.scene == r.scene && b.c->engine == Engine::Bullet && b.median.total > 0)
+      if (b.scene == r.scene && b.c->engine() == Engine::Bullet && b.median.total > 0)
         r.ratio = r.median.total / b.median.total;
   }
 
@@ -783,16 +770,14 @@ int bench(const Options& opt) {
       j["scene"] = r.scene;
       j["case"] = r.c->id;
       j["label"] = r.c->label;
-      j["engine"] = r.c->engine == Engine::Substep ? "substep" : "bullet";
-      if (r.c->engine == Engine::Substep) {
-        const SolverSettings& s = r.settings;
-        j["settings"] = {{"algorithm", algorithmName(s.algorithm)}, {"dt", s.dt},       {"substeps", s.substeps},
-                         {"iterations", s.iterations},              {"omega", s.omega}, {"tolerance", s.tolerance},
-                         {"kappa", s.kappa},                        {"tau", s.tau},     {"warm_start", s.warmStart},
-                         {"block_solve", s.blockSolve},             {"slop", s.slop}};
+      j["engine"] = r.c->engine() == Engine::Substep ? "substep" : "bullet";
+      if (r.c->engine() == Engine::Substep) {
+        j["method"] = r.c->spec;
+        j["settings"] = settingsJson(r.settings);
         j["solver_last_step"] = {{"iterations", r.median.solverIterations}, {"rows", r.median.rows}};
       } else {
-        j["settings"] = {{"dt", r.settings.dt}, {"iterations", r.c->iterations}, {"sleeping", false}};
+        j["method"] = r.c->spec;
+        j["settings"] = {{"dt", r.settings.dt}, {"iterations", r.settings.iterations}, {"sleeping", false}};
       }
       j["vs_bullet"] = std::isnan(r.ratio) ? nlohmann::json(nullptr) : nlohmann::json(r.ratio);
       j["spread"] = spread(r);

@@ -4,6 +4,7 @@
 #include "app/common.h"
 #include "app/server/http.h"
 #include "app/server/requests.h"
+#include "physics/settings_json.h"
 #include "render/scene_builder.h"
 
 namespace substep::app::web {
@@ -12,80 +13,13 @@ using namespace substep::render;
 
 json vec(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
 
-std::string methodText(const SolverOverrides& o) {
-  std::string s = o.algorithm ? algorithmName(*o.algorithm) : "scene";
-  for (const SettingSpec& spec : settingTable()) {
-    if (std::string(spec.key) == "algorithm" || !spec.isSet(o)) continue;
-    const std::string name = spec.alias[0] && static_cast<unsigned char>(spec.alias[0]) < 0x80 ? spec.alias : spec.key;
-    s += ":" + name + "=" + spec.valueText(o);
-  }
-  return s;
-}
-
-// --- the solver's settings --------------------------------------------------------------------
-// The API's names and values of the settings: the two functions below are all that speaks of
-// them one by one.
-
-json settingsJson(const SolverSettings& s) {
-  return {{"algorithm", algorithmName(s.algorithm)},
-          {"dt", s.dt},
-          {"substeps", s.substeps},
-          {"iterations", s.iterations},
-          {"omega", s.omega},
-          {"tolerance", s.tolerance},
-          {"kappa", s.kappa},
-          {"tau", s.tau},
-          {"slop", s.slop},
-          {"warm_start", s.warmStart},
-          {"block_solve", s.blockSolve},
-          {"contact_blocks", s.contactBlocks},
-          {"split_impulse", s.splitImpulse},
-          {"motor_unscaled", s.motorUnscaled},
-          {"friction_exempt", s.frictionExempt},
-          {"speculative", s.speculative},
-          {"restitution", s.restitution},
-          {"islands", s.islands},
-          {"restitution_threshold", s.restitutionThreshold},
-          {"jacobians", s.jacobians == JacobianRefresh::Joints ? "joints" : "stable"},
-          {"gyroscopic", s.gyroscopic == Gyroscopic::None       ? "none"
-                         : s.gyroscopic == Gyroscopic::Explicit ? "explicit"
-                                                                : "implicit"},
-          {"contact_hertz", s.contactHertz},
-          {"contact_damping", s.contactDamping},
-          {"joint_hertz", s.jointHertz},
-          {"joint_damping", s.jointDamping},
-          {"push_out", s.pushOut}};
-}
-
-json settingTableJson() {
-  const auto kindName = [](SettingKind k) {
-    switch (k) {
-      case SettingKind::Integer: return "integer";
-      case SettingKind::Real: return "number";
-      case SettingKind::Flag: return "flag";
-      case SettingKind::Choice: return "choice";
-    }
-    return "?";
-  };
-  json settings = json::array();
-  for (const SettingSpec& s : settingTable()) {
-    json j = {{"key", s.key}, {"alias", s.alias}, {"flag", s.flag}, {"kind", kindName(s.kind)},
-              {"help", s.help}, {"expected", s.expected()}};
-    if (s.kind == SettingKind::Integer || s.kind == SettingKind::Real)
-      j["range"] = {{"min", s.range.lo}, {"max", s.range.hi}, {"min_open", s.range.loOpen}, {"max_open", s.range.hiOpen}};
-    if (s.kind == SettingKind::Choice) j["choices"] = s.choices;
-    settings.push_back(j);
-  }
-  return settings;
-}
-
 // --- scenes, methods, the server --------------------------------------------------------------
 
 json methodsJson() {
   json algos = json::array();
-  for (Algorithm a : {Algorithm::A1, Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5, Algorithm::Soft}) {
+  for (Algorithm a : kAlgorithms) {
     SolverOverrides defaults;
-    defaults.algorithm = a;
+    defaults.set(&SolverSettings::algorithm, a);
     algos.push_back({{"name", algorithmName(a)},
                      {"title", algorithmTitle(a)},
                      {"substeps", subSteps(a)},
@@ -93,7 +27,7 @@ json methodsJson() {
                      {"defaults", settingsJson(resolve(defaults))}});
   }
   return {{"algorithms", algos},
-          {"settings", settingTableJson()},
+          {"settings", schemaJson()},
           {"colours", {"auto", "body", "group", "speed", "activity", "error"}},
           {"max_panels", kMaxPanels},
           {"example", "a5:n=4:kappa=0.85"}};
@@ -108,7 +42,7 @@ json sceneJson(const std::string& name, const Scene& s) {
             {"joints", s.model.joints.size()},
             {"cameras", cams}};
   try {
-    j["solver"] = methodText(s.solver.empty() ? SolverOverrides{} : s.solver);
+    j["solver"] = (s.solver.empty() ? SolverOverrides{} : s.solver).specText();
     j["settings"] = settingsLine(resolveSettings(s, {}));
   } catch (const UsageError& e) {
     j["error"] = e.what();
@@ -135,7 +69,7 @@ json stateJson(WebSession& s) {
     json panels = json::array();
     for (int i = 0; i < r.panelCount(); ++i) {
       const Panel& p = r.panel(i);
-      panels.push_back({{"method", methodText(s.panels[static_cast<size_t>(i)].user)},
+      panels.push_back({{"method", (s.panels[static_cast<size_t>(i)].user).specText()},
                         {"settings", settingsJson(p.settings())},
                         {"line", settingsLine(p.settings())},
                         {"time", p.state().time},

@@ -16,17 +16,8 @@ namespace substep::app::web {
 using json = nlohmann::json;
 
 json vec(const Vec3& v);
-// A method spec that gives the overrides: "a5:n=8:kappa=0.9" ("scene" for the scene's algorithm).
-std::string methodText(const SolverOverrides& o);
-
-// The solver's settings, every one by its API name: a panel's "settings", an algorithm's
-// "defaults" in /api/methods.
-json settingsJson(const SolverSettings& s);
-// The settings table as /api/methods lists it: key, alias, flag, kind, help, expected, and the
-// range or the choices.
-json settingTableJson();
-
-// GET /api/methods: the algorithms with their defaults, the settings table, the colour modes.
+// GET /api/methods: the algorithms with their defaults, the settings schema (physics/settings_json.h),
+// the colour modes.
 json methodsJson();
 // An entry of GET /api/scenes.
 json sceneJson(const std::string& name, const Scene& s);

@@ -3,6 +3,8 @@
 // out of it, and the router that turns exceptions into answers and unrouted paths into 404/405.
 #pragma once
 
+#include "physics/utf8.h"
+
 #include "physics/limits.h"
 #include "physics/math.h"
 
@@ -31,11 +33,6 @@ struct HttpError : std::runtime_error {
   std::vector<std::pair<std::string, std::string>> headers;
 };
 
-// Text quoted from a request (bytes of a body, a path, a name) may be anything, and a JSON answer
-// must be UTF-8: each byte that does not start a well-formed character becomes U+FFFD.
-std::string validUtf8(const std::string& s);
-// validUtf8(s) cut to at most `max` bytes, at a character's boundary.
-std::string utf8Prefix(const std::string& s, size_t max);
 // A value as a message quotes it: its JSON, cut short after limits::kMaxMessageValue bytes.
 std::string quote(const json& v);
 std::string joined(const std::vector<std::string>& v);

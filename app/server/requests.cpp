@@ -1,6 +1,8 @@
 // What the calls of `substep serve` ask for, read and checked: see requests.h.
 #include "app/server/requests.h"
 
+#include "physics/settings_json.h"
+
 #include "app/common.h"
 #include "app/render_options.h"
 #include "app/server/api_json.h"
@@ -76,7 +78,7 @@ std::vector<PanelSetup> setups(const Scene& scene, const std::vector<WebSession:
   std::vector<PanelSetup> r;
   for (size_t i = 0; i < panels.size(); ++i) {
     try {
-      r.push_back({resolveSettings(scene, panels[i].user), panels.size() > 1 ? methodText(panels[i].user) : ""});
+      r.push_back({resolveSettings(scene, panels[i].user), panels.size() > 1 ? panels[i].user.specText() : ""});
     } catch (const UsageError& e) {
       throw HttpError(400, (panels.size() > 1 ? "panel " + std::to_string(i) + ": " : std::string()) + e.what());
     }
@@ -94,15 +96,11 @@ void changeSettings(SolverOverrides& u, const json& set) {
     if (!spec) throw HttpError(400, name + ": unknown setting; expected one of algorithm, " + settingKeys());
     try {
       if (v.is_null())
-        spec->clear(u);
-      else if (v.is_boolean())
-        spec->setFlag(u, v.get<bool>());
-      else if (v.is_number())
-        spec->setNumber(u, v.get<double>());
+        u.clear(*spec);
       else if (v.is_string())
-        spec->setText(u, v.get<std::string>());
+        u.setText(*spec, v.get<std::string>());  // numbers and flags as typed too: "1/120", "on"
       else
-        throw std::invalid_argument("expected " + spec->expected() + ", got " + quote(v));
+        u.set(*spec, settingFromJson(*spec, v));
     } catch (const std::invalid_argument& e) {
       throw HttpError(400, name + ": " + e.what());
     }

@@ -8,17 +8,6 @@ const S = {
   events: null, cameraQueue: null, cameraBusy: false,
 };
 
-// The main solver controls, in the table's keys; the rest go under "All settings".
-const MAIN = [
-  { key: 'substeps', label: 'n (sub-steps)', min: 1, max: 32, step: 1 },
-  { key: 'iterations', label: 'm (iterations)', min: 1, max: 100, step: 1 },
-  { key: 'dt', label: 'h [s]', min: 1 / 480, max: 1 / 15, step: 0.0001 },
-  { key: 'kappa', label: '\u03ba', min: 0.05, max: 2, step: 0.05 },
-  { key: 'tau', label: '\u03c4', min: 0, max: 1.5, step: 0.05 },
-  { key: 'omega', label: '\u03c9', min: 0.05, max: 1.95, step: 0.05 },
-  { key: 'warm_start', label: 'warm start' },
-];
-
 // ---- requests ----
 
 async function api(method, path, body) {
@@ -121,12 +110,15 @@ function fillSelect(sel, items) {
 
 // ---- solver controls, from the settings table ----
 
+// Every setting the schema resolves, as /api/methods gives it: the main ones (control.main) first,
+// the rest under "All settings"; the algorithm and the preset have controls of their own.
 function buildControls() {
   const main = $('solver-controls'), more = $('more-controls');
-  const mainKeys = MAIN.map((m) => m.key);
-  for (const m of MAIN) main.appendChild(control(S.settingByKey[m.key], m));
-  for (const s of S.methods.settings)
-    if (!mainKeys.includes(s.key) && s.key !== 'algorithm' && s.key !== 'preset') more.appendChild(control(s, { label: s.key.replace(/_/g, ' ') }));
+  for (const s of S.methods.settings) {
+    if (!s.resolved || s.key === 'algorithm') continue;
+    const ui = { label: s.control.main ? s.control.label : s.key.replace(/_/g, ' '), ...(s.control.slider || {}) };
+    (s.control.main ? main : more).appendChild(control(s, ui));
+  }
 }
 
 function control(spec, ui) {
@@ -203,7 +195,6 @@ function showState(state) {
   const set = p.settings;
   $('scene').value = state.scene;
   $('algo').value = set.algorithm;
-  const algo = S.methods.algorithms.find((a) => a.name === set.algorithm);
   for (const label of document.querySelectorAll('#solver-controls label, #more-controls label')) {
     const key = label.dataset.key, v = set[key];
     const input = $(`set-${key}`);
@@ -214,12 +205,11 @@ function showState(state) {
       if (slider && document.activeElement !== slider) slider.value = v;
     }
     // What the algorithm does not use is greyed (and refused by the server).
-    const unused = (key === 'substeps' && !algo.substeps) || ((key === 'kappa' || key === 'tau') && !algo.kappa_tau) ||
-      (key === 'omega' && set.algorithm !== 'a2');
+    const unused = !S.settingByKey[key].takes.includes(set.algorithm);
     label.classList.toggle('disabled', unused);
     label.querySelectorAll('input,select').forEach((i) => { i.disabled = unused; });
   }
-  $('preset').disabled = !algo.kappa_tau;
+  $('preset').disabled = !S.settingByKey.preset.takes.includes(set.algorithm);
   $('settings-line').textContent = state.panels.map((q) => q.line).join(' | ');
   $('play').classList.toggle('on', state.playing);
   $('pause').classList.toggle('on', !state.playing);

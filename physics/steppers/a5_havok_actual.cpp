@@ -15,7 +15,7 @@
 //   velocity-level rows   β_row = c·target + J̌šʲ   (motors: c = 1, κ = 1; friction: target 0)
 //   speculative contacts  β_row = f(βʲ)/κ + J̌šʲ,  βʲ = β¹ - J̌Σ_{k<j}v̌ᵏ, f(β) = β for β < 0 (closing
 //                         a gap, not scaled by τ), τβ once penetrating: A4's row exactly.
-// Joint Jacobians between sub-steps: every joint's (JacobianRefresh::Joints, an extension), or the
+// Joint Jacobians between sub-steps: every joint's (JacobianRefresh::EveryJoint, an extension), or the
 // report's IV.4.1: only the 'stable' rows', recomputed while micro-iterating at the coordinates
 // the running velocity predicts for the sub-step's end (JacobianRefresh::Stable).
 #include "physics/constraints/joints.h"
