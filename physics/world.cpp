@@ -41,8 +41,6 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
   }
   // assign, not resize: Eigen's vectors are not zeroed by default construction.
   ctx_.poses.resize(nb);
-  ctx_.pseudoV.assign(nb, Vec3::Zero());
-  ctx_.pseudoW.assign(nb, Vec3::Zero());
   reach_.assign(nb, 0.0);
   move_.assign(nb, Vec3::Zero());
   approachV_.assign(nb, Vec3::Zero());
@@ -54,9 +52,20 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
 World::~World() = default;
 
 void World::setSettings(const SolverSettings& settings) {
+  // A1 keeps the position error in its MLCP's β (proc1:4) and never splits it off, so it would
+  // step the coordinates with pseudo-velocities no solve of its made. Refused before anything
+  // changes, as resolve() refuses a setting an algorithm does not take ("field: why").
+  if (settings.splitImpulse && settings.algorithm == Algorithm::A1)
+    throw std::invalid_argument(
+        "split_impulse: a1 solves position error in its MLCP's bias; split impulse is an option of a2-a5 (turn it off "
+        "or choose --algo a2)");
   if (settings.algorithm != settings_.algorithm) stepper_ = makeStepper(settings.algorithm);
   settings_ = settings;
   const size_t nb = model_.bodies.size();
+  // The pseudo-velocities are one step's (splitPositionErrors writes them, s4 adds them): a
+  // stepper that never splits (A1, soft) must not go on adding the last split step's.
+  ctx_.pseudoV.assign(nb, Vec3::Zero());
+  ctx_.pseudoW.assign(nb, Vec3::Zero());
   ctx_.subV.assign(nb * static_cast<size_t>(settings.substeps), Vec3::Zero());
   ctx_.subW.assign(nb * static_cast<size_t>(settings.substeps), Vec3::Zero());
 }

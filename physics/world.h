@@ -61,7 +61,8 @@ class World {
   const StepReport& step();
 
   // Changes the solver between steps, keeping the contact manifolds and their impulses (so warm
-  // starting carries over). The algorithm may change too.
+  // starting carries over). The algorithm may change too. Throws std::invalid_argument, changing
+  // nothing, for settings no stepper takes (A1 with split impulse), as the constructor does.
   void setSettings(const SolverSettings& settings);
 
   const Model& model() const { return model_; }

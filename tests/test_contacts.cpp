@@ -235,6 +235,96 @@ TEST(FrictionWarmStart, ImpulseCarriesAcrossTheTangentBasisSwitch) {
   EXPECT_LT((after - turn * before).norm(), 1e-9);  // the same impulse, turned with the ground
 }
 
+// The same within a step: A3 re-formulates every row between sub-steps (proc3:15), friction's
+// tangents from the normal of the turned coordinates, and with warm starting each sub-step starts
+// from the last one's λ. A platform (body B of the contact) turning at 0.24 rad/s carries a box's
+// normal across |n.x| = 0.57735 during the first of two sub-steps, so the tangents switch. With no
+// sweeps (m = 0) the impulses each sub-step applies are its warm start alone, read from the box's
+// velocity change: the tangential impulse sub-step 1 applies must be sub-step 0's, kept on the
+// platform as build() keeps a step's (its world direction turned by the platform's 0.11 degrees).
+// Re-applied as coefficients on the new tangents it pointed 60 degrees off.
+TEST(FrictionWarmStart, A3SubStepsCarryTheImpulseAcrossTheTangentBasisSwitch) {
+  Model model;
+  model.gravity = Vec3::Zero();
+  Body box;
+  box.shape.type = ShapeType::Box;
+  box.shape.halfExtents = Vec3::Constant(0.5);
+  box.mass = 1;
+  box.invMass = 1;
+  box.inertia = Vec3::Constant(1.0 / 6);
+  box.invInertia = Vec3::Constant(6);
+  Body platform = box;  // 100 times heavier: the impulses hardly change its turn
+  platform.mass = 100;
+  platform.invMass = 0.01;
+  platform.inertia = Vec3::Constant(100.0 / 6);
+  platform.invInertia = Vec3::Constant(0.06);
+  model.bodies = {platform, box};
+  std::vector<BodyMass> mass = {BodyMass{0.01, Vec3::Constant(0.06)}, BodyMass{1, Vec3::Constant(6)}};
+  SolverOverrides o;
+  o.algorithm = Algorithm::A3;
+  o.warmStart = true;
+  o.substeps = 2;
+  o.restitution = false;
+  SolverSettings st = resolve(o);
+  st.iterations = 0;  // below the table's range: the warm starts alone
+
+  const double yz = std::sqrt((1 - 0.5765 * 0.5765) / 2);
+  const Vec3 n0(0.5765, yz, yz);  // just below the switch
+  const Quat q0 = Quat::FromTwoVectors(Vec3::UnitY(), n0);
+  std::vector<Pose> poses = {Pose{Vec3::Zero(), q0}, Pose{n0, q0}};
+  Manifold m;
+  m.a = 1;
+  m.b = 0;
+  m.friction = 0.8;
+  m.count = 1;
+  m.points[0].localA = Vec3(0, -0.5, 0);
+  m.points[0].localB = Vec3(0, 0.5, 0);
+  m.points[0].localN = Vec3::UnitY();
+  m.points[0].lambda = 2;
+  m.frictionImpulse = Vec3(0.3, 0, -0.2);  // last step's, in the platform's frame
+  std::vector<Manifold> ms = {m};
+
+  State state;
+  state.bodies.resize(2);
+  StepContext c;
+  c.model = &model;
+  c.settings = &st;
+  c.state = &state;
+  ConstraintSet cs;
+  c.constraints = &cs;
+  c.mass = mass;
+  c.poses = poses;
+  // The platform turns its +Y towards +x (ω = |ω| n × x̂, so ṅ·x̂ = |ω|(1 - n_x²)): 0.002 rad
+  // in the sub-step of 1/120 s.
+  c.v = {Vec3::Zero(), Vec3::Zero()};
+  c.w = {q0.conjugate() * Vec3(0.24 * n0.cross(Vec3::UnitX()).normalized()), Vec3::Zero()};
+  c.subV.assign(2 * static_cast<size_t>(st.substeps), Vec3::Zero());
+  c.subW.assign(2 * static_cast<size_t>(st.substeps), Vec3::Zero());
+  cs.build(model, ms, poses, mass, st, st.dt / st.substeps, 1.0);
+  const Vec3 normal0 = cs.rows[static_cast<size_t>(cs.contacts[0].row)].lin;
+  const Vec3 t0 = cs.rows[static_cast<size_t>(cs.frictions[0].row)].lin;
+  const Vec3 box0 = c.v[1];
+  makeStepper(Algorithm::A3)->stepVelocities(c);
+  const Vec3 normal1 = cs.rows[static_cast<size_t>(cs.contacts[0].row)].lin;
+  const Vec3 t1 = cs.rows[static_cast<size_t>(cs.frictions[0].row)].lin;
+  ASSERT_LT(std::abs(normal0.x()), 0.57735);
+  ASSERT_GT(std::abs(normal1.x()), 0.57735);  // the normal crossed: the tangents were rebuilt another way
+
+  // The box's impulse in each sub-step (its mass is 1), without its part along that sub-step's normal.
+  auto tangential = [](const Vec3& impulse, const Vec3& n) { return Vec3(impulse - impulse.dot(n) * n); };
+  const Vec3 carried = tangential(c.subV[1] - box0, normal0);  // sub-step 0's
+  const Vec3 applied = tangential(c.subV[2 + 1] - c.subV[1], normal1);  // sub-step 1's
+  const Quat turn = c.subPoses[0].q * q0.conjugate();                      // the platform's, in sub-step 0
+  auto degrees = [](const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)) * 180 / M_PI; };
+  std::printf("a3, warm: tangent t1 switched by %.1f degrees; friction impulse of sub-step 1 %.2f degrees from "
+              "sub-step 0's (%.4f against %.4f N s), %.2e N s from it turned with the platform (%.3f degrees)\n",
+              degrees(t0, t1), degrees(carried, applied), applied.norm(), carried.norm(),
+              (applied - turn * carried).norm(), degrees(normal0, normal1));
+  EXPECT_GT(degrees(t0, t1), 10.0);
+  EXPECT_LT((applied - turn * carried).norm(), 1e-12);
+  EXPECT_LT(degrees(carried, applied), degrees(normal0, normal1) + 1e-9);
+}
+
 // Friction rows are velocity-level rows: under A4 they keep β = 0 (an extension, on by default);
 // with --no-friction-exempt they take the bias update rule like every row, as the report's
 // listing has it (proc4:16): after a step of sliding their β holds -Σ J̌v̌ʲ, the slide so far. While

@@ -360,3 +360,74 @@ TEST(World, CollisionFilteringKeepsBodiesApartOrNot) {
     }
   }
 }
+
+// Split impulse's pseudo-velocities are one step's: a world switched from A2 with split impulse to
+// A1 (which never splits) between steps must not step with the last A2 step's. A 3-box stack
+// starting 2 cm into the ground and into each other: one A2 step with split impulse pushes it
+// most of the way out with pseudo-velocities, then A1 steps it 60 times. It must go exactly as a
+// fresh A1 world started from the same state does: A1 pushes out what is left beyond the slop
+// within a few steps and then holds the stack still. With the last pseudo-velocities kept, every
+// step adds h p: the stack rises 2 cm a step (0.60 m over the last 30).
+TEST(World, SwitchingFromSplitImpulseToA1LeavesNoPseudoVelocity) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]},
+      {"name": "low", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 0.48, 0]},
+      {"name": "mid", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 1.46, 0]},
+      {"name": "top", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 2.44, 0]}]})");
+  SolverOverrides split;
+  split.algorithm = Algorithm::A2;
+  split.splitImpulse = true;
+  World w(s.model, resolve(split), s.initial);
+  ASSERT_TRUE(w.step().finite);
+  const State pushed = w.state();
+  // The push-out was pseudo-velocity: the boxes moved up but carry (almost) no velocity.
+  const double rise = pushed.bodies[3].x.y() - s.initial.bodies[3].x.y();
+  EXPECT_GT(rise, 0.03);
+  EXPECT_LT(pushed.bodies[3].v.norm(), 0.05);
+
+  const SolverSettings a1 = settingsFor(Algorithm::A1);
+  w.setSettings(a1);
+  World fresh(s.model, a1, pushed);
+  double apart = 0, settled = 0;
+  State half;
+  for (int k = 0; k < 60; ++k) {
+    ASSERT_TRUE(w.step().finite) << w.lastReport().problem;
+    ASSERT_TRUE(fresh.step().finite) << fresh.lastReport().problem;
+    for (size_t i = 1; i < s.model.bodies.size(); ++i)
+      apart = std::max(apart, (w.state().bodies[i].x - fresh.state().bodies[i].x).norm());
+    if (k == 29) half = w.state();
+  }
+  for (size_t i = 1; i < s.model.bodies.size(); ++i)
+    settled = std::max(settled, (w.state().bodies[i].x - half.bodies[i].x).norm());
+  std::printf("a2 with split impulse raised the top box %.4f m in one step; after the switch to a1: largest "
+              "distance from a fresh a1 world over 60 steps %.3e m, largest move over the last 30 %.3e m\n",
+              rise, apart, settled);
+  EXPECT_EQ(apart, 0.0);
+  EXPECT_LT(settled, 1e-6);
+}
+
+// A1 has no split impulse (its MLCP's β holds the position error, proc1:4): a world refuses the
+// combination, at construction and in setSettings, and a refused change leaves the settings.
+TEST(World, A1RefusesSplitImpulse) {
+  const Scene s = sceneFrom(R"({"bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.5}}]})");
+  SolverOverrides o;
+  o.algorithm = Algorithm::A1;
+  o.splitImpulse = true;
+  const SolverSettings a1split = resolve(o);
+  try {
+    World w(s.model, a1split, s.initial);
+    ADD_FAILURE() << "a1 with split impulse was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("split_impulse"), std::string::npos) << e.what();
+  }
+  o.algorithm = Algorithm::A2;
+  World w(s.model, resolve(o), s.initial);
+  EXPECT_THROW(w.setSettings(a1split), std::invalid_argument);
+  EXPECT_EQ(w.settings().algorithm, Algorithm::A2);
+  EXPECT_TRUE(w.settings().splitImpulse);
+  w.step();
+  SolverOverrides off = o;
+  off.algorithm = Algorithm::A1;
+  off.splitImpulse = false;
+  EXPECT_NO_THROW(w.setSettings(resolve(off)));
+}

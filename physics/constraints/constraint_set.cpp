@@ -134,11 +134,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     Row* fr = take(3);
     formulateFriction(f, A, B, fr, false);
     if (settings.warmStart) {
-      // Last step's tangential impulse, a vector fixed in B, projected on this step's tangents:
-      // whichever basis the new normal gets, the impulse carries over.
-      const Vec3 P = B.rotate(m.frictionImpulse);
-      fr[0].lambda = P.dot(fr[0].lin);
-      fr[1].lambda = P.dot(fr[1].lin);
+      carryFrictionImpulse(m.frictionImpulse, B, fr);  // last step's, on this step's tangents
       fr[2].lambda = m.twistImpulse;
     }
     if (!settings.frictionExempt)
@@ -454,11 +450,16 @@ void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vecto
       r.bias -= r.split;  // the step's split-off position error stays with the position solve
     }
     for (FrictionDef& f : frictions) {
-      f.qB = poses[static_cast<size_t>(f.b)].q;
       Row* fr = &rows[static_cast<size_t>(f.row)];
+      // The last sub-step's tangential impulse, which the next one starts from when warm starting
+      // (proc3:15 re-formulates, the tangents with it): carried as build() carries a step's, or a
+      // switch of the tangent basis would re-apply it up to 60 degrees off.
+      const Vec3 impulse = frictionImpulseInB(f.qB, fr);
+      f.qB = poses[static_cast<size_t>(f.b)].q;
       const bool level = fr[0].velocityLevel;
       formulateFriction(f, frames_[static_cast<size_t>(f.a)], frames_[static_cast<size_t>(f.b)], fr, false);
       for (int k = 0; k < 3; ++k) fr[k].velocityLevel = level;
+      carryFrictionImpulse(impulse, frames_[static_cast<size_t>(f.b)], fr);
     }
     finishAll(mass, applyScale);
   } else {
@@ -475,7 +476,7 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
   for (Manifold& m : manifolds) {
     for (int p = 0; p < m.count; ++p) m.points[p].lambda = rows[static_cast<size_t>(contacts[c++].row)].lambda;
     const Row* fr = &rows[static_cast<size_t>(frictions[f].row)];
-    m.frictionImpulse = frictions[f].qB.conjugate() * (fr[0].lambda * fr[0].lin + fr[1].lambda * fr[1].lin);
+    m.frictionImpulse = frictionImpulseInB(frictions[f].qB, fr);
     m.twistImpulse = fr[2].lambda;
     if (frictions[f].unit >= 0)
       m.blockMask = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[f].unit)].block)].lastMask;

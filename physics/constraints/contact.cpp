@@ -43,4 +43,14 @@ void formulateFriction(const FrictionDef& f, const Frame& A, const Frame& B, Row
   }
 }
 
+Vec3 frictionImpulseInB(const Quat& qB, const Row* rows) {
+  return qB.conjugate() * (rows[0].lambda * rows[0].lin + rows[1].lambda * rows[1].lin);
+}
+
+void carryFrictionImpulse(const Vec3& impulseInB, const Frame& B, Row* rows) {
+  const Vec3 P = B.rotate(impulseInB);
+  rows[0].lambda = P.dot(rows[0].lin);
+  rows[1].lambda = P.dot(rows[1].lin);
+}
+
 }  // namespace substep

@@ -56,4 +56,12 @@ void formulateContact(const ContactDef& c, const Frame& A, const Frame& B, doubl
 // The three friction rows of a manifold.
 void formulateFriction(const FrictionDef& f, const Frame& A, const Frame& B, Row* rows, bool jacobianOnly);
 
+// The tangential impulse λ1 t1 + λ2 t2 of friction rows formulated with B at qB, as a vector
+// fixed in B (B's frame): how a warm-started impulse is carried, between steps and sub-steps.
+Vec3 frictionImpulseInB(const Quat& qB, const Row* rows);
+// ... and such an impulse projected on the tangents of friction rows formulated at B: whichever
+// basis the normal now gets (tangentBasis switches at |n.x| = 1/√3), the impulse keeps its
+// direction on B.
+void carryFrictionImpulse(const Vec3& impulseInB, const Frame& B, Row* rows);
+
 }  // namespace substep
