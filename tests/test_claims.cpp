@@ -418,7 +418,10 @@ TEST(Claims, A4ApproximatesA3ToFirstOrder) {
 
 // IV.2.2: cycles are better invested in sub-steps than in micro-iterations. At equal solver work
 // (four sweeps a step), Γ̂¹(t, h, 4) (A3, one micro-iteration per sub-step) keeps a smaller
-// constraint error than Γ̂⁴(t, h) (A2, four sweeps), on the 20-box stack and the 30-link chain.
+// constraint error than Γ̂⁴(t, h) (A2, four sweeps), on the 20-box stack and the 30-link chain. Like
+// against like: both block-solve the joints (IV.2.2 item 2), or both solve row by row; block
+// solving alone takes A2's chain from 249 to 77 mm, so A3 with blocks against A2 without would
+// credit the sub-steps with what the blocks do.
 TEST(Claims, SubStepsBeatIterations) {
   struct Case {
     const char* file;
@@ -426,19 +429,21 @@ TEST(Claims, SubStepsBeatIterations) {
   };
   for (const Case c : {Case{"tall_stack.json", false}, Case{"chain.json", true}}) {
     const Scene s = scene(c.file);
-    World sub(s.model, settings(Algorithm::A3, 4, 1, 1, 1), s.initial);
-    World it(s.model, settings(Algorithm::A2, 1, 4, 1, 1, false), s.initial);
-    double eSub = 0, eIt = 0;
-    for (int k = 0; k < 180; ++k) {
-      sub.step();
-      it.step();
-      eSub = std::max(eSub, c.joints ? sub.maxJointError() : sub.maxPenetration());
-      eIt = std::max(eIt, c.joints ? it.maxJointError() : it.maxPenetration());
+    for (const bool blocks : {true, false}) {
+      World sub(s.model, settings(Algorithm::A3, 4, 1, 1, 1, blocks), s.initial);
+      World it(s.model, settings(Algorithm::A2, 1, 4, 1, 1, blocks), s.initial);
+      double eSub = 0, eIt = 0;
+      for (int k = 0; k < 180; ++k) {
+        sub.step();
+        it.step();
+        eSub = std::max(eSub, c.joints ? sub.maxJointError() : sub.maxPenetration());
+        eIt = std::max(eIt, c.joints ? it.maxJointError() : it.maxPenetration());
+      }
+      std::printf("%s, 3 s, %s: largest %s with sub-steps (A3 n=4 m=1) %.1f mm, with iterations (A2, 4 sweeps) "
+                  "%.1f mm\n",
+                  c.file, blocks ? "blocks" : "rows", c.joints ? "joint error" : "penetration", eSub * 1e3, eIt * 1e3);
+      EXPECT_LT(eSub, 0.5 * eIt) << c.file << (blocks ? " blocks" : " rows");  // not by a hair (measured 1/3 to 1/13)
     }
-    std::printf("%s, 3 s: largest %s with sub-steps (A3 n=4 m=1) %.1f mm, with iterations (A2, 4 sweeps) %.1f mm\n",
-                c.file, c.joints ? "joint error" : "penetration", eSub * 1e3, eIt * 1e3);
-    EXPECT_LT(eSub, eIt) << c.file;
-    EXPECT_LT(eSub, 0.5 * eIt) << c.file;  // not by a hair
   }
 }
 
