@@ -110,6 +110,27 @@ Scene tippingBox() {
                     "<box>", ".");
 }
 
+// A 2 kg ball on a ball joint to a static post, without gravity, the joint's anchor at the ball's
+// centre: its three rows are the world axes on the ball's translation alone, decoupled and linear,
+// so one step can be worked out by hand. `error` moves the post's anchor: the joint starts open by
+// C⁰ = error (pA - pB, the rows' C).
+Scene postAndBall(const Vec3& error, const Vec3& velocity) {
+  Scene s = parseScene(R"({"gravity": [0, 0, 0], "bodies": [
+      {"name": "post", "static": true, "shape": {"type": "sphere", "radius": 0.05}, "position": [0, 0, 0]},
+      {"name": "ball", "shape": {"type": "sphere", "radius": 0.1}, "position": [0, -1, 0], "mass": 2}],
+      "joints": [{"type": "ball", "bodies": ["post", "ball"], "anchor": [0, -1, 0]}]})",
+                       "<post>", ".");
+  s.model.joints[0].localAnchorA += error;
+  s.initial.bodies[1].v = velocity;
+  return s;
+}
+
+// pA - pB of the post-and-ball joint at a state.
+Vec3 ballJointError(const Scene& s, const State& st) {
+  const Joint& j = s.model.joints[0];
+  return st.bodies[0].pose().apply(j.localAnchorA) - st.bodies[1].pose().apply(j.localAnchorB);
+}
+
 // The state a scene reaches after `steps` steps of A3 (n 4, m 4): a mid-motion starting point.
 // With touching, the steps count from the first step with contact points.
 State evolve(const Scene& s, int steps, bool touching = false) {
@@ -515,6 +536,64 @@ TEST(Claims, SummedRotationIsWhatA4AndA5StepWith) {
               from.bodies[0].w.norm(), angleBetween(product, sum), got[0], got[1], got[2]);
   EXPECT_GT(angleBetween(product, sum), 1e-7);
   for (double g : got) EXPECT_LT(g, 1e-14);
+}
+
+// A2's stop (proc2:6): the sweeps end at the first one in which no row changed its velocity by
+// more than σw (SolverSettings::tolerance), or at the cap αp. On the post and ball with the joint
+// closed and the ball moving at v⁰, each row is on its own and PSOR with ω takes its velocity error
+// to (1 - ω)ᵏ of v⁰ in k sweeps; sweep k changes it by ω |1 - ω|ᵏ⁻¹ |v⁰ᵢ|. So the sweep A2 must stop
+// at is known in closed form, and the velocity it ends with.
+TEST(Claims, A2StopsAtItsTolerance) {
+  const Vec3 v0(0.3, -0.2, 0.1);
+  const Scene s = postAndBall(Vec3::Zero(), v0);
+  const double largest = v0.cwiseAbs().maxCoeff();
+  for (const double omega : {0.5, 1.0, 1.5}) {
+    for (const double tol : {1e-3, 1e-6}) {
+      int expected = 1;  // the first sweep whose largest change is <= σw
+      while (omega * std::pow(std::abs(1 - omega), expected - 1) * largest > tol) ++expected;
+      SolverSettings st = settings(Algorithm::A2, 1, 100, 1, 1, false);
+      st.omega = omega;
+      st.tolerance = tol;
+      World w(s.model, st, s.initial);
+      const StepReport& r = w.step();
+      const Vec3 v = w.state().bodies[1].v;
+      std::printf("ω = %.1f, σw = %.0e: stopped after %d sweeps (expected %d), last change %.2e m/s, |v'| %.2e m/s\n",
+                  omega, tol, r.solver.iterations, expected, r.solver.residual, v.norm());
+      EXPECT_EQ(r.solver.iterations, expected) << "ω " << omega << " σw " << tol;
+      EXPECT_LE(r.solver.residual, tol);
+      EXPECT_LT((v - std::pow(1 - omega, expected) * v0).norm(), 1e-14);
+    }
+  }
+  // σw = 0: every sweep up to the cap (ω = 1.5 halves the error each sweep, never to zero in 60).
+  SolverSettings st = settings(Algorithm::A2, 1, 60, 1, 1, false);
+  st.omega = 1.5;
+  World w(s.model, st, s.initial);
+  EXPECT_EQ(w.step().solver.iterations, 60);
+}
+
+// proc2:11 as PSOR (docs/algorithms.md): each row's increment is ω times the one that would satisfy
+// it, so on the post and ball (rows decoupled, unbounded) k sweeps leave (1 - ω)ᵏ of the velocity
+// error, and the step moves the ball by h v'. Under-relaxed (ω < 1) it creeps, over-relaxed
+// (1 < ω < 2) it overshoots and alternates; ω = 1 is exact in one sweep.
+TEST(Claims, A2RelaxesByOmega) {
+  const Vec3 v0(0.3, -0.2, 0.1), error(0.01, -0.02, 0.005);
+  const Scene s = postAndBall(error, v0);
+  const double h = 1.0 / 60;
+  const Vec3 target = error / h;  // the ball's velocity that closes the joint in the step: J v = β
+  for (const double omega : {0.5, 1.0, 1.3, 1.8}) {
+    for (const int k : {1, 2, 5}) {
+      SolverSettings st = settings(Algorithm::A2, 1, k, 1, 1, false);
+      st.omega = omega;
+      World w(s.model, st, s.initial);
+      w.step();
+      const Vec3 v = w.state().bodies[1].v;
+      const Vec3 expected = target + std::pow(1 - omega, k) * (v0 - target);
+      if (k == 2) std::printf("ω = %.1f, 2 sweeps: v' = (%.4f, %.4f, %.4f) m/s, expected (%.4f, %.4f, %.4f)\n", omega,
+                              v.x(), v.y(), v.z(), expected.x(), expected.y(), expected.z());
+      EXPECT_LT((v - expected).norm(), 1e-12 * target.norm()) << "ω " << omega << ", " << k << " sweeps";
+      EXPECT_LT((ballJointError(s, w.state()) - h * (target - expected)).norm(), 1e-14) << "ω " << omega;
+    }
+  }
 }
 
 // The acceptance scene: a pile of twenty ragdolls under A5 with Havok's defaults (n 4, m 1,
