@@ -596,6 +596,47 @@ TEST(Claims, A2RelaxesByOmega) {
   }
 }
 
+// proc3:11 solves J̌(κ v̌ + M̌⁻¹J̌ᵀλ) = τβ with β = -C/(h/n): τ is the share of the position error
+// a sub-step corrects. On the post and ball at rest with the joint open by C⁰ (rows linear in the
+// ball's position, one block solved exactly in one micro-iteration), the constraint velocity after
+// sub-step j is xʲ = (1 - κ) xʲ⁻¹ + τβʲ, and Cʲ = Cʲ⁻¹ + (h/n) xʲ. With κ = 1: Cʲ = (1 - τ) Cʲ⁻¹, so
+// one step leaves (1 - τ)ⁿ C⁰. A3 re-formulates β exactly, A4 updates it by proc4:16 and A5 bakes
+// that in: the update is exact for rows linear in the coordinates, so all three agree to round-off.
+TEST(Claims, TauIsTheShareOfPositionErrorCorrectedPerSubStep) {
+  const Vec3 error(0.01, -0.02, 0.005);
+  const Scene s = postAndBall(error, Vec3::Zero());
+  const double h = 1.0 / 60;
+  double worst = 0;
+  for (const Algorithm a : {Algorithm::A3, Algorithm::A4, Algorithm::A5}) {
+    for (const double kappa : {1.0, 0.8, 1.2}) {
+      for (const double tau : {0.2, 0.6, 1.0}) {
+        for (const int n : {1, 2, 4}) {
+          World w(s.model, settings(a, n, 1, kappa, tau), s.initial);
+          w.step();
+          Vec3 C = error, x = Vec3::Zero();
+          for (int j = 0; j < n; ++j) {
+            x = (1 - kappa) * x + tau * (-C / (h / n));  // J v̌ = -v_ball: x is C's rate
+            C += h / n * x;
+          }
+          const Vec3 got = ballJointError(s, w.state());
+          worst = std::max(worst, (got - C).norm() / error.norm());
+          EXPECT_LT((got - C).norm(), 1e-12 * error.norm()) << algorithmName(a) << " κ " << kappa << " τ " << tau << " n " << n;
+          if (kappa == 1) {
+            EXPECT_NEAR(got.norm(), std::pow(1 - tau, n) * error.norm(), 1e-12 * error.norm())
+                << algorithmName(a) << " τ " << tau << " n " << n;
+          }
+          if (a == Algorithm::A3 && kappa == 1 && n == 1)
+            std::printf("τ = %.1f: one sub-step leaves %.4f of the joint's error (1 - τ = %.1f)\n", tau,
+                        got.norm() / error.norm(), 1 - tau);
+        }
+      }
+    }
+  }
+  std::printf("A3, A4, A5 for κ in {1, 0.8, 1.2}, τ in {0.2, 0.6, 1}, n in {1, 2, 4}: largest departure from the "
+              "recurrence %.1e of C⁰\n", worst);
+}
+
+
 // The acceptance scene: a pile of twenty ragdolls under A5 with Havok's defaults (n 4, m 1,
 // τ 0.6, κ 1) for 10 s. Asserted: every value stays finite and every body stays within the room
 // around the steps. The third condition, no joint separating more than 2 cm, does not
