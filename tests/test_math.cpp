@@ -1,5 +1,6 @@
 // The report's derivations (sections III and V) as property tests on random states.
 #include "physics/constraints/parts.h"
+#include "physics/mass.h"
 #include "physics/math.h"
 
 #include <gtest/gtest.h>
@@ -40,31 +41,48 @@ TEST(Derivations, LocalJacobianGivesTheSameConstraintVelocity) {
   }
 }
 
-// III.2: the local inverse mass is the change of basis R⁻¹ (R M̌⁻¹ R⁻¹) R of the world one, i.e.
-// the constant principal diagonal: an impulse through J̌ gives the same velocity change as the
-// world formulation through J with I_world⁻¹ = R diag(1/I) Rᵀ.
+// III.2: the local inverse mass is the change of basis ʲM̌⁻¹ = R⁻¹ (ᴱM⁻¹) R of the world one. The
+// world inertia is taken from the body as it stands in the world, independently of the code's
+// local one: the box as a mesh with its vertices at their world positions, integrated
+// (meshMassProperties). Then (a) an impulse through the row's J̌ (M̌⁻¹J̌ᵀλ, from the body's principal
+// moments) gives the angular velocity change the world formulation gives through J and that world
+// inertia, and (b) the change of basis of the world inverse inertia is the constant diagonal the
+// body keeps (Body::invInertia from setMassFromMass), whatever the orientation.
 TEST(Derivations, LocalInverseMassIsTheChangeOfBasis) {
   Rng r;
-  for (int t = 0; t < 1000; ++t) {
+  for (int t = 0; t < 200; ++t) {
     const Pose A{r.vec(5), r.quat()}, B{Vec3::Zero(), Quat::Identity()};
-    const Vec3 I(r.uni(0.1, 5), r.uni(0.1, 5), r.uni(0.1, 5));
-    const Vec3 invI = I.cwiseInverse();
+    const Vec3 e(r.uni(0.1, 1), r.uni(0.1, 1), r.uni(0.1, 1));  // half extents [m]
+    const double mass = r.uni(0.5, 20);
+    Body body;
+    body.shape.type = ShapeType::Box;
+    body.shape.halfExtents = e;
+    setMassFromMass(body, mass);
+    Mesh world;  // the box at A: 8 vertices, 12 outward triangles
+    for (int i = 0; i < 8; ++i)
+      world.vertices.push_back(A.apply(Vec3((i & 1 ? 1 : -1) * e.x(), (i & 2 ? 1 : -1) * e.y(), (i & 4 ? 1 : -1) * e.z())));
+    world.triangles = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 4, 6}, {0, 6, 2},
+                       {1, 3, 7}, {1, 7, 5}, {0, 1, 5}, {0, 5, 4}, {2, 6, 7}, {2, 7, 3}};
+    const MassProperties mp = meshMassProperties(world, mass / (8 * e.prod()));
+    ASSERT_NEAR(mp.mass, mass, 1e-12 * mass);
+    const Mat3 invIWorld = mp.inertia.inverse();  // ᴱM⁻¹, rotational
     const Mat3 R = A.q.toRotationMatrix();
-    const Mat3 invIWorld = R * invI.asDiagonal() * R.transpose();
+    const double scale = invIWorld.norm();
+    // (a) the row's velocity change against the world's.
     const Vec3 rA = r.vec(), n = r.unit();
     const double lambda = r.uni(-2, 2);
     const Vec3 dwWorld = invIWorld * rA.cross(n) * lambda;
     Row row;
     axisRow(row, 0, 1, A, B, rA, Vec3::Zero(), n);
-    finishRow(row, BodyMass{1.0, invI}, BodyMass{}, 1.0);
-    const Vec3 dwLocal = row.mAngA * lambda;  // M̌⁻¹J̌ᵀλ
-    EXPECT_LT((R * dwLocal - dwWorld).norm(), 1e-12 * (1 + dwWorld.norm()));
-    // The report's boxed change of basis: R_E→j (R M⁻¹ Rᵀ) R_j→E is diagonal and constant.
-    const Mat3 back = R.transpose() * invIWorld * R;
-    EXPECT_LT((back - Mat3(invI.asDiagonal())).norm(), 1e-12 * invI.norm());
+    finishRow(row, BodyMass{body.invMass, body.invInertia}, BodyMass{}, 1.0);
+    const Vec3 dwLocal = row.mAngA * lambda;  // M̌⁻¹J̌ᵀλ, body frame
+    EXPECT_LT((R * dwLocal - dwWorld).norm(), 1e-10 * (1 + dwWorld.norm()));
+    // (b) R⁻¹ (ᴱM⁻¹) R is the body's diagonal M̌⁻¹.
+    const Mat3 local = R.transpose() * invIWorld * R;
+    EXPECT_LT((local - Mat3(body.invInertia.asDiagonal())).norm(), 1e-10 * scale) << local;
     // Effective mass agrees with the world one.
-    const double kWorld = 1.0 + rA.cross(n).dot(invIWorld * rA.cross(n));
-    EXPECT_NEAR(1.0 / row.effMass, kWorld, 1e-12 * kWorld);
+    const double kWorld = body.invMass + rA.cross(n).dot(invIWorld * rA.cross(n));
+    EXPECT_NEAR(1.0 / row.effMass, kWorld, 1e-10 * kWorld);
   }
 }
 

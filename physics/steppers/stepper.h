@@ -68,6 +68,37 @@ class Stepper {
 
 std::unique_ptr<Stepper> makeStepper(Algorithm a);
 
+// --- A3 with approximations, for the tests that take A4 - A3 and A5 - A4 apart ----------------
+// A4 differs from A3 at proc4:15 (Jacobians), proc4:16 (bias) and proc4:20 (rotation); A5 from
+// A4 by IV.4.1's Jacobian approximation in the bias (IV.4.2's refactoring is exact). Each is a
+// switch here, so that a test can run A3 with exactly one on. Not a solver setting: World makes
+// its stepper from the algorithm, so a test reaches these through ScopedA3Approximations.
+enum class BiasRule {
+  Exact,              // proc3:15: βʲ⁺¹ from the coordinates at t + j h/n
+  Update,             // proc4:16: βʲ⁺¹ = βʲ - J̌ʲv̌ʲ (position-level rows; IV.3.1)
+  UpdateOneJacobian,  // IV.4.1, as A5 has it: βʲ⁺¹ = β¹ - J̌ʲ⁺¹ Σ_{k<=j} v̌ᵏ, one Jacobian for every term
+};
+struct Approximations {
+  BiasRule bias = BiasRule::Exact;
+  bool holdJacobians = false;   // proc4:15, IV.3.2: contacts keep J̌¹ over the step; joints are recomputed
+  bool summedRotation = false;  // proc4:20: R_q(Σ h/n rv̌ᵏ), for the sub-steps' coordinates and s4
+  bool none() const { return bias == BiasRule::Exact && !holdJacobians && !summedRotation; }
+  static Approximations a4() { return {BiasRule::Update, true, true}; }
+};
+std::unique_ptr<Stepper> makeHavokConceptualStepper(const Approximations& a);
+// While one lives, makeStepper(Algorithm::A3) on this thread makes A3 with `a` (they nest).
+class ScopedA3Approximations {
+ public:
+  explicit ScopedA3Approximations(const Approximations& a);
+  ~ScopedA3Approximations();
+  ScopedA3Approximations(const ScopedA3Approximations&) = delete;
+  ScopedA3Approximations& operator=(const ScopedA3Approximations&) = delete;
+
+ private:
+  Approximations a_;
+  const Approximations* previous_;
+};
+
 // --- shared pieces ---------------------------------------------------------------------------
 
 // Adds ext, the velocity the external forces give in time dt, to every dynamic body: gravity, and
