@@ -261,10 +261,10 @@ TEST(FrictionWarmStart, A3SubStepsCarryTheImpulseAcrossTheTangentBasisSwitch) {
   model.bodies = {platform, box};
   std::vector<BodyMass> mass = {BodyMass{0.01, Vec3::Constant(0.06)}, BodyMass{1, Vec3::Constant(6)}};
   SolverOverrides o;
-  o.algorithm = Algorithm::A3;
-  o.warmStart = true;
-  o.substeps = 2;
-  o.restitution = false;
+  o.set(&SolverSettings::algorithm, Algorithm::A3);
+  o.set(&SolverSettings::warmStart, true);
+  o.set(&SolverSettings::substeps, 2);
+  o.set(&SolverSettings::restitution, false);
   SolverSettings st = resolve(o);
   st.iterations = 0;  // below the table's range: the warm starts alone
 

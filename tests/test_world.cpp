@@ -375,8 +375,8 @@ TEST(World, SwitchingFromSplitImpulseToA1LeavesNoPseudoVelocity) {
       {"name": "mid", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 1.46, 0]},
       {"name": "top", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 2.44, 0]}]})");
   SolverOverrides split;
-  split.algorithm = Algorithm::A2;
-  split.splitImpulse = true;
+  split.set(&SolverSettings::algorithm, Algorithm::A2);
+  split.set(&SolverSettings::splitImpulse, true);
   World w(s.model, resolve(split), s.initial);
   ASSERT_TRUE(w.step().finite);
   const State pushed = w.state();
@@ -406,28 +406,33 @@ TEST(World, SwitchingFromSplitImpulseToA1LeavesNoPseudoVelocity) {
   EXPECT_LT(settled, 1e-6);
 }
 
-// A1 has no split impulse (its MLCP's β holds the position error, proc1:4): a world refuses the
-// combination, at construction and in setSettings, and a refused change leaves the settings.
+// A1 has no split impulse (its MLCP's β holds the position error, proc1:4): the schema does not
+// let a1 take it (resolve leaves it out, a command line is refused), and a world made from
+// settings built by hand refuses the combination too, at construction and in setSettings; a
+// refused change leaves the settings.
 TEST(World, A1RefusesSplitImpulse) {
   const Scene s = sceneFrom(R"({"bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.5}}]})");
   SolverOverrides o;
-  o.algorithm = Algorithm::A1;
-  o.splitImpulse = true;
-  const SolverSettings a1split = resolve(o);
+  o.set(&SolverSettings::algorithm, Algorithm::A1);
+  o.set(&SolverSettings::splitImpulse, true);
+  EXPECT_FALSE(resolve(o).splitImpulse);
+  EXPECT_THROW(checkTaken(o, Algorithm::A1), std::invalid_argument);
+  SolverSettings a1split = resolve(o);
+  a1split.splitImpulse = true;
   try {
     World w(s.model, a1split, s.initial);
     ADD_FAILURE() << "a1 with split impulse was taken";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("split_impulse"), std::string::npos) << e.what();
   }
-  o.algorithm = Algorithm::A2;
+  o.set(&SolverSettings::algorithm, Algorithm::A2);
   World w(s.model, resolve(o), s.initial);
   EXPECT_THROW(w.setSettings(a1split), std::invalid_argument);
   EXPECT_EQ(w.settings().algorithm, Algorithm::A2);
   EXPECT_TRUE(w.settings().splitImpulse);
   w.step();
   SolverOverrides off = o;
-  off.algorithm = Algorithm::A1;
-  off.splitImpulse = false;
+  off.set(&SolverSettings::algorithm, Algorithm::A1);
+  off.set(&SolverSettings::splitImpulse, false);
   EXPECT_NO_THROW(w.setSettings(resolve(off)));
 }
