@@ -16,5 +16,6 @@ void addSweepCommand(CLI::App& app, std::function<int()>& action);
 void addChartCommand(CLI::App& app, std::function<int()>& action);
 void addAtlasCommand(CLI::App& app, std::function<int()>& action);
 void addAdviseCommand(CLI::App& app, std::function<int()>& action);
+void addRerunCommand(CLI::App& app, std::function<int()>& action);
 
 }  // namespace substep::app

@@ -19,5 +19,6 @@ int main(int argc, char** argv) {
   addChartCommand(app, action);
   addAtlasCommand(app, action);
   addAdviseCommand(app, action);
+  addRerunCommand(app, action);
   return runCommandLine(app, argc, argv, "substep", [&] { return action ? action() : 0; });
 }

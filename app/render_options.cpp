@@ -182,7 +182,7 @@ void advanceShowingSteps(RenderSession& session, double t, bool quiet) {
 
 int reportDivergence(const char* program, const Panel& panel) {
   std::cerr << program << ": stopped: " << panel.problem() << "; no output written\n";
-  return kExitNonFinite;
+  return panel.refused() ? kExitBadInput : kExitNonFinite;
 }
 
 }  // namespace substep::app

@@ -55,7 +55,8 @@ void stopIfInterrupted();
 // quiet), for a single frame far into a run. Stops early when a panel diverges or on Ctrl-C.
 void advanceShowingSteps(render::RenderSession& session, double t, bool quiet);
 
-// The message and status of a diverged panel: "PROGRAM: stopped: ...; no output written", 3.
+// The message and status of a diverged panel: "PROGRAM: stopped: ...; no output written", 3 (2
+// when its algorithm refused the scene: bad input).
 int reportDivergence(const char* program, const render::Panel& panel);
 
 }  // namespace substep::app

@@ -277,4 +277,17 @@ bool BulletPeer::finite() const {
   return true;
 }
 
+Engine::Step BulletEngine::status() {
+  peer_.state(s_);
+  s_.step += 1;
+  s_.time = static_cast<double>(s_.step) * dt_;
+  if (s_.finite()) return {};
+  return Step{false, false, "a Bullet body's state is not finite"};
+}
+
+ContactDepths BulletEngine::depths() const {
+  const BulletPeer::Penetration p = peer_.penetration();
+  return ContactDepths{p.deepest, p.sumSquares, p.points};
+}
+
 }  // namespace substep::lab

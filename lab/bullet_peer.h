@@ -12,6 +12,7 @@
 
 #include "physics/math.h"
 #include "physics/model.h"
+#include "physics/run.h"
 #include "physics/state.h"
 
 #include <memory>
@@ -62,6 +63,24 @@ class BulletPeer {
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+};
+
+// The peer as the run driver steps it (physics/run.h): its state read back into substep's after
+// each step, outside the timed part.
+class BulletEngine final : public Engine {
+ public:
+  BulletEngine(const Model& model, const State& initial, double dt, int iterations, bool gyroscopic)
+      : peer_(model, initial, dt, iterations, gyroscopic), s_(initial), dt_(dt) {}
+  void advance() override { peer_.step(); }
+  Step status() override;
+  const State& state() const override { return s_; }
+  ContactDepths depths() const override;
+  const BulletPeer& peer() const { return peer_; }
+
+ private:
+  BulletPeer peer_;
+  State s_;
+  double dt_;
 };
 
 }  // namespace substep::lab

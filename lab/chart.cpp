@@ -67,7 +67,7 @@ std::string labelOf(const json& row, double commonStep) {
   std::replace(label.begin(), label.end(), ':', ' ');
   if (label.rfind("preset=", 0) == 0) label = label.substr(7);  // "4-medium"
   if (row["settings"]["dt"].get<double>() != commonStep && text.find("h=") == std::string::npos)
-    label += (label.empty() ? "" : " ") + std::string("h=") + row["settings"]["h"].get<std::string>();
+    label += (label.empty() ? "" : " ") + std::string("h=") + row["h"].get<std::string>();
   return label;
 }
 
@@ -289,7 +289,7 @@ bool havokChart(const std::string& scene, const std::vector<Point>& pts, const s
 bool convergenceChart(const std::string& scene, const std::vector<Point>& pts, const std::string& metric, Chart& c) {
   std::map<std::string, std::vector<const Point*>> groups;
   for (const Point& p : pts)
-    if (!p.diverged && p.error > 0 && std::isfinite(p.error)) groups[signature(*p.row, {"dt", "h"})].push_back(&p);
+    if (!p.diverged && p.error > 0 && std::isfinite(p.error)) groups[signature(*p.row, {"dt"})].push_back(&p);
   std::ostringstream data, plot;
   int index = 0;
   for (auto& [sig, g] : groups) {

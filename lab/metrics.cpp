@@ -143,7 +143,12 @@ Probe::Probe(const Scene& scene, double seconds, const PreparedReference* refere
   last_ = scene.initial;
 }
 
-void Probe::observe(const State& s, const Penetration& contacts, bool finite) {
+std::string Probe::stop(const Engine&) {
+  if (!diverged()) return {};
+  return "the mechanical energy grew beyond 100 times the energy that lifts every body by its size";
+}
+
+void Probe::observe(const State& s, const ContactDepths& contacts, bool finite) {
   watch_.observe(s, finite);
   const bool ownTolerance = scene_.criteria && scene_.criteria->tolerance;
   if (!ownTolerance && !m_.collapseTime && watch_.report().collapseTime >= 0) m_.collapseTime = watch_.report().collapseTime;

@@ -5,6 +5,7 @@
 #include "lab/reference.h"
 #include "physics/constraints/joints.h"
 #include "physics/failure.h"
+#include "physics/run.h"
 #include "physics/scene_file.h"
 
 #include <map>
@@ -69,12 +70,6 @@ std::string formatMetric(const std::string& name, double value);
 // A length alone, the same way.
 std::string formatLength(double metres);
 
-// Contact depths of a step: the deepest point and the sum of squares over penetrating points.
-struct Penetration {
-  double deepest = 0, sumSquares = 0;
-  int points = 0;
-};
-
 // What a reference needs of a run, prepared once per scene (the converged run costs).
 struct PreparedReference {
   SceneReference::Kind kind = SceneReference::Kind::Converged;
@@ -86,11 +81,16 @@ PreparedReference prepareReference(const Scene& scene, const SceneReference& ref
 // The grid trajectories are compared on [s].
 constexpr double kTrajectoryInterval = 1.0 / 120;
 
-class Probe {
+// A run's observer (physics/run.h): after each step it measures the state and its contacts, and it
+// stops the run when the failure watch sees it diverge.
+class Probe final : public RunObserver {
  public:
   Probe(const Scene& scene, double seconds, const PreparedReference* reference = nullptr);
+  void observe(const Engine& e, const StepRecord& r) override { observe(e.state(), e.depths(), r.finite); }
+  std::string stop(const Engine&) override;
+  bool stopIsDivergence() const override { return true; }
   // After each step: the state, its contacts, and whether it is still finite.
-  void observe(const State& s, const Penetration& contacts, bool finite);
+  void observe(const State& s, const ContactDepths& contacts, bool finite);
   // Once, after the last step.
   const Metrics& finish();
   const Metrics& metrics() const { return m_; }

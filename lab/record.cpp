@@ -2,6 +2,9 @@
 
 #include "lab/provenance.h"
 #include "physics/settings_json.h"
+#include "physics/state_hash.h"
+
+#include <cstdio>
 
 #include <cmath>
 #include <filesystem>
@@ -14,15 +17,6 @@ using json = nlohmann::json;
 
 json number(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 json optional(const std::optional<double>& x) { return x ? number(*x) : json(nullptr); }
-
-// Every setting the run used (physics/settings_json.h); the Bullet peer's are the three it maps.
-json runSettingsJson(const Method& m, const SolverSettings& s) {
-  json j = substep::settingsJson(s);
-  if (m.isBullet())
-    j = {{"dt", s.dt}, {"iterations", s.iterations}, {"gyroscopic", s.gyroscopic == Gyroscopic::None ? "none" : "implicit"}};
-  j["h"] = stepText(s.dt);
-  return j;
-}
 
 json metricsJson(const Metrics& m) {
   json byKind = json::object();
@@ -70,6 +64,70 @@ json metricsJson(const Metrics& m) {
 
 }  // namespace
 
+json recordSettingsJson(const Method& m, const SolverSettings& s) {
+  if (m.isBullet())
+    return {{"dt", s.dt}, {"iterations", s.iterations}, {"gyroscopic", s.gyroscopic == Gyroscopic::None ? "none" : "implicit"}};
+  return settingsJson(s);
+}
+
+json hashesJson(const RunHashes& h) {
+  json steps = json::array(), bodies = json::array();
+  for (const auto& [k, v] : h.steps) steps.push_back(json::array({k, hashText(v)}));
+  for (const auto& [k, v] : h.bodies) {
+    std::string hex;
+    hex.reserve(8 * v.size());
+    char buf[9];
+    for (uint32_t x : v) {
+      std::snprintf(buf, sizeof buf, "%08x", x);
+      hex += buf;
+    }
+    bodies.push_back({{"step", k}, {"hashes", hex}});
+  }
+  return {{"every", h.every}, {"steps", steps}, {"bodies", bodies}, {"dynamic_bodies", h.dynamic.size()}};
+}
+
+RunHashes hashesFromJson(const json& j) {
+  auto bad = [](const std::string& what) { return std::invalid_argument("state_hashes: " + what); };
+  if (!j.is_object() || !j.contains("every") || !j.contains("steps") || !j.contains("bodies"))
+    throw bad("expected an object with every, steps and bodies");
+  RunHashes h;
+  h.every = j["every"].get<long long>();
+  for (const json& x : j["steps"]) {
+    if (!x.is_array() || x.size() != 2 || !x[0].is_number_integer() || !x[1].is_string()) throw bad("expected [step, \"hash\"] pairs");
+    const std::optional<uint64_t> v = parseHash(x[1].get<std::string>());
+    if (!v) throw bad("\"" + x[1].get<std::string>() + "\" is not a hash of 16 hex digits");
+    h.steps.emplace_back(x[0].get<long long>(), *v);
+  }
+  for (const json& x : j["bodies"]) {
+    if (!x.is_object() || !x.contains("step") || !x.contains("hashes") || !x["hashes"].is_string())
+      throw bad("expected {step, hashes} objects in bodies");
+    const std::string hex = x["hashes"].get<std::string>();
+    if (hex.size() % 8 != 0 || hex.find_first_not_of("0123456789abcdef") != std::string::npos)
+      throw bad("body hashes: expected 8 hex digits a body");
+    std::vector<uint32_t> v;
+    for (size_t i = 0; i < hex.size(); i += 8) v.push_back(static_cast<uint32_t>(std::stoul(hex.substr(i, 8), nullptr, 16)));
+    h.bodies.emplace_back(x["step"].get<long long>(), std::move(v));
+  }
+  return h;
+}
+
+void addReproduction(json& j, const Scene& scene, bool bullet, const json& settings, long long steps, long long stepsDone,
+                     const RunHashes& hashes) {
+  std::error_code ec;
+  j["scene_file"] = scene.file;
+  j["scene_path"] = std::filesystem::absolute(scene.file, ec).lexically_normal().string();
+  j["scene_hash"] = scene.hash;
+  j["engine"] = bullet ? "bullet" : "substep";
+  j["settings"] = settings;
+  j["steps"] = steps;
+  j["steps_done"] = stepsDone;
+  j["commit"] = sourceCommit();
+  j["source"] = sourceState();
+  j["threads"] = kStepThreads;
+  j["state_hash"] = hashText(hashes.last);
+  j["state_hashes"] = hashesJson(hashes);
+}
+
 std::string errorMetric(const Scene& scene) {
   if (scene.criteria && !scene.criteria->error.empty()) return scene.criteria->error;
   if (scene.criteria && !scene.criteria->pass.empty()) return scene.criteria->pass.front().first;
@@ -96,14 +154,12 @@ json recordJson(const Scene& scene, const RunResult& run, double seconds, int re
   json j;
   j["key"] = runKey(scene, run.method.text, run.settings.dt, seconds);
   j["scene"] = name;
-  j["scene_file"] = scene.file;
   j["method"] = run.method.text;
   j["family"] = run.method.family();
-  j["engine"] = run.method.isBullet() ? "bullet" : "substep";
-  j["settings"] = runSettingsJson(run.method, run.settings);
+  j["h"] = stepText(run.settings.dt);
+  addReproduction(j, scene, run.method.isBullet(), recordSettingsJson(run.method, run.settings), run.steps, run.stepsDone,
+                  run.hashes);
   j["seconds"] = seconds;
-  j["steps"] = run.steps;
-  j["steps_done"] = run.stepsDone;
   j["time_s"] = run.time;
   j["repeat"] = repeat;
   j["finite"] = run.finite;
@@ -132,7 +188,6 @@ json recordJson(const Scene& scene, const RunResult& run, double seconds, int re
     for (const Check& c : v.checks) checks.push_back({{"check", c.text}, {"ok", c.ok}});
     j["verdict"] = {{"result", resultName(v.result)}, {"figure", v.figure}, {"checks", checks}};
   }
-  j["commit"] = sourceCommit();
   if (place) j["sweep"] = {{"plan", place->plan}, {"index", place->index}, {"runs", place->runs}};
   return j;
 }

@@ -33,6 +33,19 @@ std::string runKey(const Scene& scene, const std::string& method, double dt, dou
 // The scene's name in records: the file's stem ("chain", "tall_stack_30").
 std::string sceneName(const Scene& scene);
 
+// What a record needs to be re-run (substep rerun, lab/rerun.h), added to it: the scene (as given,
+// its absolute path and its content's hash), the engine, every setting, the planned steps and
+// those done, the source commit, the threads a step used, and the state hashes (the last state's
+// as state_hash, the checkpoints under state_hashes).
+void addReproduction(nlohmann::json& record, const Scene& scene, bool bullet, const nlohmann::json& settings,
+                     long long steps, long long stepsDone, const RunHashes& hashes);
+nlohmann::json hashesJson(const RunHashes& h);
+// Throws std::invalid_argument naming what is missing or malformed.
+RunHashes hashesFromJson(const nlohmann::json& j);
+// The settings a record holds for a method: every resolved setting (the Bullet peer's: dt,
+// iterations, gyroscopic).
+nlohmann::json recordSettingsJson(const Method& m, const SolverSettings& s);
+
 nlohmann::json recordJson(const Scene& scene, const RunResult& run, double seconds, int repeat,
                           const std::optional<SweepPlace>& place = std::nullopt);
 

@@ -1,5 +1,7 @@
 #include "lab/reference.h"
 
+#include "physics/run.h"
+
 #include "lab/method.h"
 #include "physics/world.h"
 
@@ -146,21 +148,27 @@ TrajectoryDifference difference(const TrajectorySampler& a, const TrajectorySamp
 namespace {
 
 // The scene under `settings` for `seconds`, sampled; throws ReferenceError when it stops.
+class Sample final : public RunObserver {
+ public:
+  explicit Sample(TrajectorySampler& s) : s_(s) {}
+  void observe(const Engine& e, const StepRecord& r) override {
+    if (r.finite) s_.observe(e.state());
+  }
+
+ private:
+  TrajectorySampler& s_;
+};
+
 TrajectorySampler sampledRun(const Scene& scene, const SolverSettings& settings, double seconds, double interval,
                              const std::string& what) {
   TrajectorySampler sampler(scene.model, scene.initial, interval);
   World world(scene.model, settings, scene.initial);
-  const long long steps = static_cast<long long>(std::ceil(seconds / settings.dt - 1e-9));
-  for (long long k = 0; k < steps; ++k) {
-    try {
-      const StepReport& r = world.step();
-      if (!r.finite) throw ReferenceError(what + " stopped at t = " + fixed(world.state().time, 3) + " s: " + r.problem);
-    } catch (const std::runtime_error& e) {
-      if (dynamic_cast<const ReferenceError*>(&e)) throw;
-      throw ReferenceError(what + " cannot run the scene: " + e.what());
-    }
-    sampler.observe(world.state());
-  }
+  WorldEngine engine(world);
+  Sample sample(sampler);
+  RunDriver run(engine, static_cast<long long>(std::ceil(seconds / settings.dt - 1e-9)));
+  const RunOutcome& o = run.add(sample).run();
+  if (o.end == RunOutcome::End::Refused) throw ReferenceError(what + " cannot run the scene: " + o.message);
+  if (o.end == RunOutcome::End::Diverged) throw ReferenceError(what + ": " + o.message);
   return sampler;
 }
 

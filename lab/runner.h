@@ -6,6 +6,7 @@
 
 #include "lab/method.h"
 #include "lab/metrics.h"
+#include "physics/state_hash.h"
 #include "physics/world.h"
 
 #include <functional>
@@ -46,6 +47,7 @@ struct RunResult {
   Cost cost;
   Metrics metrics;
   std::vector<State> frames;            // at frameRate, from t = 0
+  RunHashes hashes;                     // of the observed pass, to re-run it against
   double msPerSecond() const { return cost.msPerStep / settings.dt; }  // cost of a simulated second [ms]
 };
 
@@ -54,8 +56,5 @@ struct RunResult {
 // finite = false.
 RunResult runMethod(const Scene& scene, const Method& method, const RunSetup& setup);
 
-// The deepest penetration and the sum of squares over the penetrating contact points of the
-// World's last step, at its current coordinates.
-Penetration worldPenetration(const World& world);
 
 }  // namespace substep::lab

@@ -22,6 +22,21 @@ double halfSize(const Shape& s) {
 
 }  // namespace
 
+Displacement largestDisplacement(const Model& model, const State& from, const State& now, const std::vector<int>* only) {
+  Displacement d;
+  auto visit = [&](size_t i) {
+    const Vec3 by = now.bodies[i].x - from.bodies[i].x;
+    const double m = by.norm();
+    if (d.body < 0 || m > d.metres) d = Displacement{m, static_cast<int>(i), by};
+  };
+  if (only)
+    for (int i : *only) visit(static_cast<size_t>(i));
+  else
+    for (size_t i = 0; i < model.bodies.size(); ++i)
+      if (!model.bodies[i].isStatic) visit(i);
+  return d;
+}
+
 double kineticEnergy(const Model& model, const State& s) {
   double e = 0;
   for (size_t i = 0; i < model.bodies.size(); ++i) {

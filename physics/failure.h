@@ -53,6 +53,15 @@ class FailureWatch {
   FailureReport report_;
 };
 
+// The dynamic body that moved furthest from where it started (of `only`, when given).
+struct Displacement {
+  double metres = 0;
+  int body = -1;
+  Vec3 by = Vec3::Zero();
+};
+Displacement largestDisplacement(const Model& model, const State& from, const State& now,
+                                 const std::vector<int>* only = nullptr);
+
 // Energies of a state's dynamic bodies [J]: kinetic Σ ½ m |v|² + ½ v̌ᵀ I v̌, potential Σ -m g·x,
 // mechanical their sum.
 double kineticEnergy(const Model& model, const State& s);

@@ -3,6 +3,7 @@
 // quietly does something else.
 #include "physics/scene_file.h"
 #include "physics/settings_json.h"
+#include "physics/state_hash.h"
 
 #include "physics/generators.h"
 #include "physics/mass.h"
@@ -970,7 +971,9 @@ Scene parseScene(const std::string& text, const std::string& file, const std::st
                  const SceneLimits& lim) {
   Checker checker(file);
   if (!json::sax_parse(text, &checker)) throw SceneError(file, sourcePosition(text, checker.position()), checker.message());
-  return Reader(file, baseDir, lim).read(json::parse(text));
+  Scene scene = Reader(file, baseDir, lim).read(json::parse(text));
+  scene.hash = contentHash(text);
+  return scene;
 }
 
 std::string readInputFile(const std::string& path, size_t maxBytes) {

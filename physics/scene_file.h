@@ -94,6 +94,7 @@ struct SceneCriteria {
 
 struct Scene {
   std::string file;            // as given to loadScene
+  std::string hash;            // of the file's content (contentHash, physics/state_hash.h): records name it
   std::string description;
   Model model;
   State initial;

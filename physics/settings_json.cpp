@@ -85,6 +85,21 @@ SolverOverrides overridesFromJson(const json& j, const std::string& where) {
   return o;
 }
 
+SolverSettings resolvedFromJson(const json& j, const std::string& where) {
+  if (!j.is_object()) throw std::invalid_argument(where + ": expected an object of settings, got " + typeOf(j));
+  SolverSettings s;
+  for (const SettingSpec& spec : settingTable()) {
+    if (!spec.resolved()) continue;
+    if (!j.contains(spec.key)) throw std::invalid_argument(where + ": no " + spec.key);
+    try {
+      spec.put(s, settingFromJson(spec, j.at(spec.key)));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(where + "." + spec.key + ": " + e.what());
+    }
+  }
+  return s;
+}
+
 json schemaJson() {
   json list = json::array();
   for (const SettingSpec& s : settingTable()) {

@@ -18,6 +18,10 @@ nlohmann::json overridesJson(const SolverOverrides& o);
 // Given settings from such an object (or a scene's "solver" block). Unknown keys and wrong types
 // are refused: std::invalid_argument "<where>.<key>: expected ..., got ...".
 SolverOverrides overridesFromJson(const nlohmann::json& j, const std::string& where);
+// Resolved settings from settingsJson()'s object, each field as it is (whether or not the algorithm
+// reads it), so that a record's settings are the run's to the last bit. Every key must be there:
+// std::invalid_argument "<where>: no <key>" otherwise, or naming a malformed value.
+SolverSettings resolvedFromJson(const nlohmann::json& j, const std::string& where);
 // One setting's value as JSON, and back (checked).
 nlohmann::json settingJson(const SettingSpec& s, double value);
 double settingFromJson(const SettingSpec& s, const nlohmann::json& v);  // throws std::invalid_argument

@@ -2,6 +2,7 @@
 
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 
@@ -38,6 +39,40 @@ uint64_t stateHash(const State& s) {
   const uint64_t h = XXH3_64bits_digest(st);
   XXH3_freeState(st);
   return h;
+}
+
+std::string contentHash(const std::string& bytes) {
+  const XXH128_hash_t h = XXH3_128bits(bytes.data(), bytes.size());
+  return hashText(h.high64) + hashText(h.low64);
+}
+
+StateHashes::StateHashes(const Model& model, long long plannedSteps, long long every) {
+  h_.every = every > 0 ? every : std::max(1LL, (plannedSteps + RunHashes::kMaxStepHashes - 1) / RunHashes::kMaxStepHashes);
+  for (size_t i = 0; i < model.bodies.size(); ++i)
+    if (!model.bodies[i].isStatic) h_.dynamic.push_back(static_cast<int>(i));
+  keepBodies_ = h_.dynamic.size() <= RunHashes::kMaxBodyHashed;
+}
+
+void StateHashes::bodiesAt(long long step, const State& s) {
+  std::vector<uint32_t> b;
+  b.reserve(h_.dynamic.size());
+  for (int i : h_.dynamic) b.push_back(static_cast<uint32_t>(bodyHash(s.bodies[static_cast<size_t>(i)])));
+  h_.bodies.emplace_back(step, std::move(b));
+}
+
+void StateHashes::begin(const Engine& e) { h_.last = stateHash(e.state()); }
+
+void StateHashes::observe(const Engine& e, const StepRecord& r) {
+  if (r.step % h_.every == 0) h_.steps.emplace_back(r.step, stateHash(e.state()));
+  if (keepBodies_ && (r.step & (r.step - 1)) == 0) bodiesAt(r.step, e.state());
+}
+
+void StateHashes::end(const Engine& e, const RunOutcome& o) {
+  h_.last = stateHash(e.state());
+  if (o.steps > 0 && (h_.steps.empty() || h_.steps.back().first != o.steps)) h_.steps.emplace_back(o.steps, h_.last);
+  if (o.steps > 0 && h_.dynamic.size() <= 16 * RunHashes::kMaxBodyHashed &&
+      (h_.bodies.empty() || h_.bodies.back().first != o.steps))
+    bodiesAt(o.steps, e.state());
 }
 
 std::string hashText(uint64_t h) {

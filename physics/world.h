@@ -17,6 +17,7 @@
 #include "physics/steppers/stepper.h"
 
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,15 @@ struct StageTimes {
 // Beyond these a state is taken as diverged: FCL's trees and the solvers lose all precision.
 constexpr double kMaxCoordinate = 1e6;  // [m]
 constexpr double kMaxSpeed = 1e6;       // [m/s] and [rad/s]
+
+// A step the method cannot take on this scene with these settings (A1 beyond its size or its
+// work budget): the settings are bad input for the scene, not a failure of the run.
+struct Refused : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+// The threads a step uses: one, for now (records carry it).
+inline constexpr int kStepThreads = 1;
 
 struct StepReport {
   bool finite = true;    // false: the step stopped: the state diverged (non-finite or beyond the
@@ -54,7 +64,7 @@ class World {
   World(const Model& model, const SolverSettings& settings, const State& initial);
   ~World();
 
-  // One step of length settings.dt. Returns finite = false, with the body and the value in
+  // One step of length settings.dt; throws Refused when the algorithm cannot take it. Returns finite = false, with the body and the value in
   // `problem`, when a coordinate or velocity is not finite or beyond kMaxCoordinate/kMaxSpeed,
   // after the step or already before it (then without stepping); and with overloaded = true,
   // without stepping, when more pairs of bodies overlap than limits::kMaxPairsPerBody per body.

@@ -6,17 +6,19 @@ namespace substep::render {
 
 Panel::Panel(const Scene& scene, PanelSetup setup)
     : scene_(scene), setup_(std::move(setup)),
-      world_(std::make_unique<World>(scene.model, setup_.settings, scene.initial)) {}
+      world_(std::make_unique<World>(scene.model, setup_.settings, scene.initial)),
+      engine_(std::make_unique<WorldEngine>(*world_)),
+      run_(std::make_unique<RunDriver>(*engine_, std::numeric_limits<long long>::max())) {}
 
 bool Panel::takeStep() {
-  const StepReport& r = world_->step();
-  if (!r.finite) {
-    const State& s = world_->state();
+  if (!run_->stepOnce()) {
+    const RunOutcome& o = run_->outcome();
     diverged_ = true;
-    problem_ = (name().empty() ? std::string() : "panel \"" + name() + "\": ") + "the simulation diverged at step " +
-               std::to_string(s.step) + " (t = " + std::to_string(s.time) + " s): " + r.problem;
+    refused_ = o.end == RunOutcome::End::Refused;
+    problem_ = (name().empty() ? std::string() : "panel \"" + name() + "\": ") + o.message;
     return false;
   }
+  const StepReport& r = world_->lastReport();
   costSum_ += r.times.total();
   physicsSeconds_ += r.times.total();
   ++costSteps_;

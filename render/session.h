@@ -16,6 +16,7 @@
 
 #include "physics/scene_file.h"
 #include "physics/settings.h"
+#include "physics/run.h"
 #include "physics/world.h"
 #include "render/gl_renderer.h"
 #include "render/image.h"
@@ -63,6 +64,9 @@ class Panel {
   // The state drawn: the world's, or after a divergence the last state the panel advanced from.
   const State& state() const { return diverged_ ? lastGood_ : world_->state(); }
   bool diverged() const { return diverged_; }
+  // Its algorithm refused the scene (A1 beyond its size): it stopped, as a diverged panel does,
+  // but the settings are at fault, not the run.
+  bool refused() const { return refused_; }
   // After a divergence: `panel "a5:n=4": the simulation diverged at step 12 (t = 0.2 s): body ...`
   // (without the panel part when it has no name).
   const std::string& problem() const { return problem_; }
@@ -79,8 +83,10 @@ class Panel {
   const Scene& scene_;
   PanelSetup setup_;
   std::unique_ptr<World> world_;
+  std::unique_ptr<WorldEngine> engine_;
+  std::unique_ptr<RunDriver> run_;  // the run driver's one step, its one divergence message
   State lastGood_;
-  bool diverged_ = false;
+  bool diverged_ = false, refused_ = false;
   std::string problem_;
   double lastStepMs_ = std::numeric_limits<double>::quiet_NaN();
   double costSum_ = 0;  // [s] of the steps of this advance

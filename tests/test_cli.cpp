@@ -315,12 +315,13 @@ TEST(Cli, RunWritesTrajectoryAndMetrics) {
     EXPECT_EQ(e.path().string().find(".part"), std::string::npos) << e.path();
 }
 
-// A failing run leaves no output file and no temporary file.
+// A failing run leaves no output file and no temporary file. A1 refusing the pyramid (too many rows
+// for a dense solve) is bad input, settings the scene cannot take: exit status 2.
 TEST(Cli, FailedRunLeavesNothingBehind) {
   const fs::path traj = scratch("never.csv");
   fs::remove(traj);
   const Outcome r = run("run assets/scenes/pyramid.json --algo a1 --steps 200 --trajectory " + traj.string());
-  EXPECT_EQ(r.status, 1) << r.output;  // A1 refuses the pyramid at its first step: too many rows for a dense solve
+  EXPECT_EQ(r.status, 2) << r.output;
   EXPECT_NE(r.output.find("a1 solves the MLCP with a dense"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(traj));
   for (const auto& e : fs::directory_iterator(traj.parent_path()))

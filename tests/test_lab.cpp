@@ -258,7 +258,7 @@ TEST(Runner, RefusedAndDivergedRunsAreResults) {
   const RunResult d = runMethod(spin, method("a2:gyro=explicit"), setup);
   EXPECT_TRUE(d.diverged);
   EXPECT_LT(d.stepsDone, d.steps);
-  EXPECT_NE(d.stopped.find("diverged at t ="), std::string::npos) << d.stopped;
+  EXPECT_NE(d.stopped.find("the simulation diverged at step "), std::string::npos) << d.stopped;
   EXPECT_EQ(judge(spin, d).result, Verdict::Result::Fail);
   EXPECT_NE(judge(spin, d).figure.find("diverged at"), std::string::npos);
   // A scene that states no check gives no verdict, whatever became of the run.
@@ -303,11 +303,12 @@ TEST(Records, OneRecordPerRun) {
   EXPECT_EQ(j["key"], "projectile_wall | a5:n=2 | h=1/60 | 0.5 s");
   EXPECT_EQ(j["settings"]["substeps"], 2);  // an integer
   EXPECT_EQ(j["settings"]["warm_start"], false);
-  EXPECT_EQ(j["settings"]["h"], "1/60");
-  for (const SettingSpec& spec : settingTable())
-    if (std::string(spec.key) != "preset") {
-      EXPECT_TRUE(j["settings"].contains(spec.key)) << spec.key;
-    }
+  EXPECT_EQ(j["h"], "1/60");
+  for (const SettingSpec& spec : settingTable()) EXPECT_EQ(j["settings"].contains(spec.key), spec.resolved()) << spec.key;
+  // And what re-runs it (lab/rerun.h).
+  for (const char* k : {"scene_file", "scene_path", "scene_hash", "engine", "steps", "steps_done", "commit", "threads",
+                        "state_hash", "state_hashes"})
+    EXPECT_TRUE(j.contains(k)) << k;
   for (const char* k : {"penetration_max_m", "penetration_rms_m", "joint_error_by_kind", "limit_excess_rad", "energy_drift",
                         "jitter_mps", "displacement_max_m", "collapse_time_s", "trajectory_error_m", "failure"})
     EXPECT_TRUE(j["metrics"].contains(k)) << k;
@@ -336,7 +337,7 @@ nlohmann::json fakeRow(const std::string& scene, const std::string& method, cons
                        double dt, double error, double msPerStep) {
   return {{"key", scene + method + std::to_string(dt)}, {"scene", scene}, {"method", method}, {"family", family},
           {"refused", false}, {"finite", true}, {"diverged", false},
-          {"settings", {{"dt", dt}, {"h", stepText(dt)}, {"substeps", n}, {"iterations", m}, {"algorithm", family}}},
+          {"h", stepText(dt)}, {"settings", {{"dt", dt}, {"substeps", n}, {"iterations", m}, {"algorithm", family}}},
           {"cost", {{"ms_per_step", msPerStep}, {"ms_per_second", msPerStep / dt}}},
           {"values", {{"joint_error", error}}},
           {"error", {{"metric", "joint_error"}, {"label", "max joint error"}, {"unit", "m"}, {"value", error}}}};

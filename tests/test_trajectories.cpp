@@ -76,7 +76,7 @@ json runOnce(const Scene& scene, const std::string& method) {
         break;
       }
     }
-  } catch (const std::runtime_error&) {  // A1 beyond its size: refused at its first step
+  } catch (const Refused&) {  // A1 beyond its size: refused at its first step
     r["refused"] = true;
   }
   r["steps"] = world.state().step;

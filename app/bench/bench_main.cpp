@@ -23,6 +23,8 @@
 #include "physics/scene_file.h"
 #include "physics/settings.h"
 #include "physics/settings_json.h"
+#include "physics/failure.h"
+#include "physics/run.h"
 #include "physics/world.h"
 
 #include <CLI/CLI.hpp>
@@ -70,19 +72,19 @@ using app::UsageError;
 
 // --- the cases --------------------------------------------------------------------------------
 
-enum class Engine { Substep, Bullet };
+enum class EngineKind { Substep, Bullet };
 
 struct Case {
   const char* id;          // its name for --algos
   const char* label;       // its name in the table
   const char* spec;        // the method (physics/settings.h); the scene gives only the time step
   bool byDefault;          // run when --algos is not given
-  Engine engine() const { return std::string(spec).rfind(kBulletPeer, 0) == 0 ? Engine::Bullet : Engine::Substep; }
+  EngineKind engine() const { return std::string(spec).rfind(kBulletPeer, 0) == 0 ? EngineKind::Bullet : EngineKind::Substep; }
   // Its settings at the scene's h: the method's own over the algorithm's defaults, so that the
   // scene's solver block cannot change what a case means.
   SolverSettings settings(double dt) const {
     SolverOverrides o = expandMethodSpec(spec).at(0).overrides;
-    if (engine() == Engine::Bullet) o.set(&SolverSettings::algorithm, Algorithm::A2);  // n stays 1
+    if (engine() == EngineKind::Bullet) o.set(&SolverSettings::algorithm, Algorithm::A2);  // n stays 1
     o.set(&SolverSettings::dt, dt);
     return resolve(o);
   }
@@ -127,32 +129,18 @@ struct Run {
   int solverIterations = 0, rows = 0;  // substep only: the last step's solver statistics
 };
 
-// How far the dynamic bodies are from their start: the largest displacement, its body and vector.
-template <class PoseOf>
-double largestDisplacement(const Scene& scene, PoseOf poseOf, int* body = nullptr, Vec3* by = nullptr) {
-  double moved = 0;
-  for (size_t i = 0; i < scene.model.bodies.size(); ++i) {
-    if (scene.model.bodies[i].isStatic) continue;
-    const Vec3 d = poseOf(i).p - scene.initial.bodies[i].x;
-    if ((body && *body < 0) || d.norm() > moved) {
-      moved = d.norm();
-      if (body) *body = static_cast<int>(i);
-      if (by) *by = d;
-    }
-  }
-  return moved;
-}
-
 // What the run's end state looks like, by our definitions for both engines: displacement, the
 // fastest body, joint anchor separation and limit excess (physics/constraints/joints.h).
-template <class PoseOf, class VelocityOf>
-void measureEnd(Run& r, const Scene& scene, PoseOf poseOf, VelocityOf velocityOf) {
-  r.moved = largestDisplacement(scene, poseOf, &r.movedBody, &r.movedBy);
+void measureEnd(Run& r, const Scene& scene, const State& s) {
+  const Displacement d = largestDisplacement(scene.model, scene.initial, s);
+  r.moved = d.metres;
+  r.movedBody = d.body;
+  r.movedBy = d.by;
   const Model& model = scene.model;
   for (size_t i = 0; i < model.bodies.size(); ++i)
-    if (!model.bodies[i].isStatic) r.maxSpeed = std::max(r.maxSpeed, velocityOf(i).norm());
+    if (!model.bodies[i].isStatic) r.maxSpeed = std::max(r.maxSpeed, s.bodies[i].v.norm());
   for (const Joint& j : model.joints) {
-    const Pose A = poseOf(static_cast<size_t>(j.bodyA)), B = poseOf(static_cast<size_t>(j.bodyB));
+    const Pose A = s.bodies[static_cast<size_t>(j.bodyA)].pose(), B = s.bodies[static_cast<size_t>(j.bodyB)].pose();
     r.jointError = std::max(r.jointError, jointError(j, A, B));
     const LimitExcess e = jointLimitExcess(j, A, B);
     r.hingeExcess = std::max(r.hingeExcess, e.hinge);
@@ -162,63 +150,59 @@ void measureEnd(Run& r, const Scene& scene, PoseOf poseOf, VelocityOf velocityOf
   r.limitExcess = std::max({r.hingeExcess, r.swingExcess, r.twistExcess});
 }
 
-// The step after which 1 s of simulated time has passed (0: never, for dt > 1 s).
-int stepOfOneSecond(double dt) { return static_cast<int>(std::lround(1.0 / dt)); }
+// Each step's wall time, and the largest displacement once 1 s of simulated time has passed
+// (measured between timed steps).
+class StepTimes final : public RunObserver {
+ public:
+  StepTimes(const Scene& scene, double dt, std::vector<double>& times)
+      : scene_(scene), oneSecond_(std::lround(1.0 / dt)), times_(times) {}
+  void observe(const Engine& e, const StepRecord& r) override {
+    times_[static_cast<size_t>(r.step - 1)] = r.seconds;
+    if (r.step == oneSecond_) moved1s = largestDisplacement(scene_.model, scene_.initial, e.state()).metres;
+  }
+  double moved1s = NAN;
 
-Run runSubstep(const Scene& scene, const SolverSettings& settings, int steps, std::vector<double>& stepTimes) {
-  World world(scene.model, settings, scene.initial);  // outside the timed loop
-  auto poseOf = [&](size_t i) { return world.state().bodies[i].pose(); };
-  const int oneSecond = stepOfOneSecond(settings.dt);
-  Run r;
-  for (int k = 0; k < steps; ++k) {
-    const auto t0 = Clock::now();
-    const StepReport& rep = world.step();
-    stepTimes[static_cast<size_t>(k)] = since(t0);
-    r.stepsDone = k + 1;
-    if (!rep.finite) {
-      r.finite = false;
-      r.problem = rep.problem;
-      break;
-    }
-    if (r.stepsDone == oneSecond) r.moved1s = largestDisplacement(scene, poseOf);  // between timed steps
-  }
-  const double n = std::max(1, r.stepsDone);
-  const StageTimes& t = world.totalTimes();
-  r.stages = StageTimes{t.s1 / n, t.s2 / n, t.s3 / n, t.s4 / n};
-  for (int k = 0; k < r.stepsDone; ++k) {
-    r.total += stepTimes[static_cast<size_t>(k)];
-    r.worst = std::max(r.worst, stepTimes[static_cast<size_t>(k)]);
-  }
-  r.total /= n;
-  r.contacts = world.lastReport().contactPoints;
-  r.solverIterations = world.lastReport().solver.iterations;
-  r.rows = world.lastReport().solver.rows;
-  measureEnd(r, scene, poseOf, [&](size_t i) { return world.state().bodies[i].v; });
-  return r;
-}
+ private:
+  const Scene& scene_;
+  long long oneSecond_;
+  std::vector<double>& times_;
+};
 
-Run runBullet(const Scene& scene, double dt, int iterations, int steps, std::vector<double>& stepTimes) {
-  BulletPeer peer(scene.model, scene.initial, dt, iterations);  // outside the timed loop
-  auto poseOf = [&](size_t i) { return peer.pose(i); };
-  const int oneSecond = stepOfOneSecond(dt);
-  Run r;
-  for (int k = 0; k < steps; ++k) {
-    const auto t0 = Clock::now();
-    peer.step();
-    stepTimes[static_cast<size_t>(k)] = since(t0);
-    r.stepsDone = k + 1;
-    if (r.stepsDone == oneSecond) r.moved1s = largestDisplacement(scene, poseOf);  // between timed steps
+// One timed run of a case: a fresh World (or Bullet world) built outside the timed steps.
+Run runCase(const Scene& scene, const Case& c, const SolverSettings& settings, int steps, std::vector<double>& stepTimes) {
+  std::unique_ptr<World> world;
+  std::unique_ptr<Engine> engine;
+  if (c.engine() == EngineKind::Bullet) {
+    engine = std::make_unique<lab::BulletEngine>(scene.model, scene.initial, settings.dt, settings.iterations, true);
+  } else {
+    world = std::make_unique<World>(scene.model, settings, scene.initial);
+    engine = std::make_unique<WorldEngine>(*world);
   }
-  r.finite = peer.finite();
-  if (!r.finite) r.problem = "a Bullet body's position is not finite";
+  StepTimes times(scene, settings.dt, stepTimes);
+  RunDriver run(*engine, steps);
+  run.add(times);
+  const RunOutcome& o = run.run();
+  Run r;
+  r.stepsDone = static_cast<int>(o.steps);
+  r.finite = o.end != RunOutcome::End::Diverged;
+  r.problem = o.message;
+  r.moved1s = times.moved1s;
   const double n = std::max(1, r.stepsDone);
   for (int k = 0; k < r.stepsDone; ++k) {
     r.total += stepTimes[static_cast<size_t>(k)];
     r.worst = std::max(r.worst, stepTimes[static_cast<size_t>(k)]);
   }
   r.total /= n;
-  r.contacts = peer.contactPoints();
-  measureEnd(r, scene, poseOf, [&](size_t i) { return peer.velocity(i); });
+  if (world) {
+    const StageTimes& t = world->totalTimes();
+    r.stages = StageTimes{t.s1 / n, t.s2 / n, t.s3 / n, t.s4 / n};
+    r.contacts = world->lastReport().contactPoints;
+    r.solverIterations = world->lastReport().solver.iterations;
+    r.rows = world->lastReport().solver.rows;
+  } else {
+    r.contacts = static_cast<const lab::BulletEngine&>(*engine).peer().contactPoints();
+  }
+  measureEnd(r, scene, engine->state());
   return r;
 }
 
@@ -355,7 +339,7 @@ void printTables(const std::vector<Result>& results, int steps, std::ostream& ou
   out << line;
   for (const Result& r : results) {
     const Run& m = r.median;
-    const bool ours = r.c->engine() == Engine::Substep;
+    const bool ours = r.c->engine() == EngineKind::Substep;
     auto stage = [&](double s) { return ours ? fmt("%7.3f", s * 1e3) : std::string("      -"); };
     const std::string vs = std::isnan(r.ratio) ? "-" : fmt("%.2fx", r.ratio);
     std::snprintf(line, sizeof line, "%-12s %-15s %s %s %s %s %9.3f %7.1f %9s\n", r.scene.c_str(), r.c->label,
@@ -519,8 +503,7 @@ ScalingRun scalingRunInChild(const Case& c, int boxes, int steps) {
       lim.maxBodies = boxes + 1;
       const Scene scene = parseScene(pileSceneText(boxes), "pile", ".", lim);
       std::vector<double> times(static_cast<size_t>(steps));
-      Run r = c.engine() == Engine::Substep ? runSubstep(scene, c.settings(1.0 / 60.0), steps, times)
-                                          : runBullet(scene, 1.0 / 60.0, c.settings(1.0 / 60).iterations, steps, times);
+      Run r = runCase(scene, c, c.settings(1.0 / 60.0), steps, times);
       const double out[3] = {r.total, static_cast<double>(r.contacts), r.finite ? 1.0 : 0.0};
       const ssize_t w = write(fd[1], out, sizeof out);
       _exit(w == static_cast<ssize_t>(sizeof out) ? 0 : 1);
@@ -655,7 +638,7 @@ int bench(const Options& opt) {
       r.sceneIndex = s;
       r.model = &scenes[s].model;
       r.c = c;
-      if (c->engine() == Engine::Substep) {
+      if (c->engine() == EngineKind::Substep) {
         try {
           r.settings = c->settings(dt);
           World probe(scenes[s].model, r.settings, scenes[s].initial);
@@ -694,8 +677,7 @@ int bench(const Options& opt) {
   for (int rep = 0; rep < opt.repeat; ++rep) {
     for (Result& r : results) {
       const Scene& scene = scenes[r.sceneIndex];
-      Run run = r.c->engine() == Engine::Substep ? runSubstep(scene, r.settings, opt.steps, stepTimes)
-                                               : runBullet(scene, r.settings.dt, r.settings.iterations, opt.steps, stepTimes);
+      Run run = runCase(scene, *r.c, r.settings, opt.steps, stepTimes);
       ++done;
       std::fprintf(stderr, "[%d/%d] %-8s %-15s repeat %d/%d: %.3f ms/step\n", done, totalRuns, r.scene.c_str(),
                    r.c->label, rep + 1, opt.repeat, run.total * 1e3);
@@ -716,7 +698,7 @@ int bench(const Options& opt) {
   }
   for (Result& r : results) {
     for (const Result& b : results)
-      if (b.scene == r.scene && b.c->engine() == Engine::Bullet && b.median.total > 0)
+      if (b.scene == r.scene && b.c->engine() == EngineKind::Bullet && b.median.total > 0)
         r.ratio = r.median.total / b.median.total;
   }
 
@@ -770,8 +752,8 @@ int bench(const Options& opt) {
       j["scene"] = r.scene;
       j["case"] = r.c->id;
       j["label"] = r.c->label;
-      j["engine"] = r.c->engine() == Engine::Substep ? "substep" : "bullet";
-      if (r.c->engine() == Engine::Substep) {
+      j["engine"] = r.c->engine() == EngineKind::Substep ? "substep" : "bullet";
+      if (r.c->engine() == EngineKind::Substep) {
         j["method"] = r.c->spec;
         j["settings"] = settingsJson(r.settings);
         j["solver_last_step"] = {{"iterations", r.median.solverIterations}, {"rows", r.median.rows}};

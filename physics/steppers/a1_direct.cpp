@@ -6,6 +6,7 @@
 // Γ is formed densely, so A1 accepts at most settings.directMaxRows rows.
 #include "physics/steppers/mlcp_direct.h"
 #include "physics/steppers/stepper.h"
+#include "physics/world.h"
 
 #include <stdexcept>
 #include <string>
@@ -24,13 +25,13 @@ class DirectStepper final : public Stepper {
     c.stats.rows = n;
     if (n == 0) return;
     if (n > c.settings->directMaxRows)
-      throw std::runtime_error("a1 solves the MLCP with a dense " + std::to_string(n) + "x" + std::to_string(n) +
+      throw Refused("a1 solves the MLCP with a dense " + std::to_string(n) + "x" + std::to_string(n) +
                                " matrix, more than its limit of " + std::to_string(c.settings->directMaxRows) +
                                " rows; use --algo a2..a5 for a scene this large");
     assembleMLCP(cs.rows, c.mass, c.v.data(), c.w.data(), p_);
     const DirectResult res = solveDirect(p_, lambda_, c.settings->directWorkBudget);
     if (!res.ok)
-      throw std::runtime_error("a1: the direct MLCP solver found no answer to a " + std::to_string(n) +
+      throw Refused("a1: the direct MLCP solver found no answer to a " + std::to_string(n) +
                                "-row problem within its work budget; use --algo a2..a5 for this scene");
     c.stats.directMethod = res.method;
     c.stats.residual = res.residual;
