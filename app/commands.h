@@ -17,5 +17,6 @@ void addChartCommand(CLI::App& app, std::function<int()>& action);
 void addAtlasCommand(CLI::App& app, std::function<int()>& action);
 void addAdviseCommand(CLI::App& app, std::function<int()>& action);
 void addRerunCommand(CLI::App& app, std::function<int()>& action);
+void addSettingsCommand(CLI::App& app, std::function<int()>& action);
 
 }  // namespace substep::app

@@ -20,5 +20,6 @@ int main(int argc, char** argv) {
   addAtlasCommand(app, action);
   addAdviseCommand(app, action);
   addRerunCommand(app, action);
+  addSettingsCommand(app, action);
   return runCommandLine(app, argc, argv, "substep", [&] { return action ? action() : 0; });
 }

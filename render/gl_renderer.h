@@ -25,8 +25,8 @@ enum class AntiAliasing {
 std::optional<AntiAliasing> parseAntiAliasing(const std::string& s);  // "none", "fxaa"
 const char* antiAliasingName(AntiAliasing a);
 
-// The default, FXAA without multisampling, draws the 210-box pyramid at 1280x720 in 8 to 11 ms
-// (median) on two llvmpipe threads, 4x multisampling in about 14 ms (docs/rendering.md, "Measured").
+// The default is FXAA without multisampling, the cheaper of the two on llvmpipe for the same edges
+// (docs/rendering.md, "Measured").
 struct RendererOptions {
   AntiAliasing antiAliasing = AntiAliasing::Fxaa;
   int samples = 1;           // multisampling; 1 turns it off; llvmpipe makes any other count 4 (its only one)

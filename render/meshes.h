@@ -38,10 +38,9 @@ inline constexpr int kRoundSlices[] = {8, 12, 16, 20, 24, 32};
 inline constexpr int kRoundLevels = 6;
 inline constexpr int kFinestLevel = kRoundLevels - 1;
 // Largest silhouette error a level may make: half a pixel on screen, half a texel in the shadow
-// map (its lookup blends 2x2 texels). Measured on the ragdoll pile at 1280x720: the levels take
-// the frame's CPU time from about 75 ms to 32 (a quarter of a pixel: 35), and at 4x zoom the
-// frames look the same as with 32 slices everywhere; what changes is which side of a silhouette
-// some edge pixels fall on.
+// map (its lookup blends 2x2 texels): at 4x zoom the frames look the same as with 32 slices
+// everywhere; what changes is which side of a silhouette some edge pixels fall on. What the
+// levels save is measured in docs/rendering.md.
 inline constexpr float kMaxSilhouetteError = 0.5f;
 inline constexpr float kMaxShadowSilhouetteError = 0.5f;
 bool isRound(int meshId);  // sphere, capsule, cylinder

@@ -202,6 +202,34 @@ TEST(Cli, SolverOptionsUseTheTable) {
   }
 }
 
+// docs/settings.md's table is the schema's own output, not a second list to keep in step.
+TEST(Cli, SettingsDocIsTheSchema) {
+  const Outcome r = run("settings --format markdown");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream in(SUBSTEP_SOURCE_DIR "/docs/settings.md");
+  std::stringstream doc;
+  doc << in.rdbuf();
+  const std::string d = doc.str(), open = "<!-- substep settings --format markdown -->\n", close = "<!-- end -->";
+  const size_t a = d.find(open), b = d.find(close);
+  ASSERT_TRUE(a != std::string::npos && b != std::string::npos) << "docs/settings.md lacks its markers";
+  EXPECT_EQ(d.substr(a + open.size(), b - a - open.size()), r.output)
+      << "docs/settings.md differs from the schema: write the block again with substep settings --format markdown";
+  for (const substep::SettingSpec& spec : substep::settingTable())
+    EXPECT_NE(r.output.find(std::string("| `") + spec.key + "` |"), std::string::npos) << spec.key;
+}
+
+// The run's metrics JSON holds every resolved setting, by the schema's keys.
+TEST(Cli, RunMetricsHoldEverySetting) {
+  const fs::path m = scratch("every.json");
+  ASSERT_EQ(run("run assets/scenes/chain.json --algo soft --steps 2 -q --metrics " + m.string()).status, 0);
+  std::ifstream in(m);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  for (const substep::SettingSpec& spec : substep::settingTable())
+    EXPECT_EQ(j["settings"].contains(spec.key), spec.resolved()) << spec.key;
+  EXPECT_EQ(j["settings"]["algorithm"], "soft");
+  EXPECT_EQ(j["settings"]["contact_hertz"], 30);
+}
+
 // Ctrl-C during a run: exit status 130, a message, no temporary left; and a temporary left by a
 // process that is gone (killed with SIGKILL) is removed by the next run writing the same file.
 TEST(Cli, InterruptedRunLeavesNoTemporary) {

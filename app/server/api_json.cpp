@@ -22,8 +22,6 @@ json methodsJson() {
     defaults.set(&SolverSettings::algorithm, a);
     algos.push_back({{"name", algorithmName(a)},
                      {"title", algorithmTitle(a)},
-                     {"substeps", subSteps(a)},
-                     {"kappa_tau", havokScaled(a)},
                      {"defaults", settingsJson(resolve(defaults))}});
   }
   return {{"algorithms", algos},

@@ -35,8 +35,8 @@ double pairShift(const Manifold& m, const Pose& poseA, const Pose& poseB) {
 
 bool pairShiftBelow(const Manifold& m, const Pose& poseA, const Pose& poseB, double limit) {
   // θ/2 = atan(s/c) <= s/c (s = |turn.vec()|, c = |turn.w()|): if the shift with 2s/c for θ is
-  // below the limit, so is pairShift's, and the arctangent (a tenth of a settled step's
-  // geometry) is not needed.
+  // below the limit, so is pairShift's, and the arctangent (costly, asked for every cached pair
+  // of every step) is not needed.
   const Quat turn = m.relQ.conjugate() * relativeOrientation(poseA, poseB);
   const double lin = (relativePosition(poseA, poseB) - m.relP).norm();
   const double s = turn.vec().norm(), c = std::abs(turn.w());

@@ -50,8 +50,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     jointLambda_.assign(static_cast<size_t>(total), 0.0);
   }
   // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
-  // is reset field by field: constructing each anew zero-filled it first (a rep stos, slow to
-  // start), a tenth of formulating a pyramid.
+  // is reset field by field, without a zero fill of the whole row (docs/benchmarks.md).
   size_t total = jointLambda_.size();
   for (const Manifold& m : manifolds) total += static_cast<size_t>(m.count) + 3;
   rows.resize(total);
@@ -180,8 +179,8 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
 }
 
 void ConstraintSet::findIslands(bool split, bool frictionFirst) {
-  // Only the bodies of manifolds and joints are read, never the rows: reading every row again
-  // made this a tenth of a 10 000-box step.
+  // Only the bodies of manifolds and joints are read, never the rows, which would stream the
+  // step's largest array through the cache once more.
   // Islands off: one island, the whole step (island() gives whole()).
   if (!split) {
     islands_.assign(2, Island{});
@@ -324,7 +323,7 @@ namespace {
 // block's formulation.
 template <int n>
 bool invertSpd(const double (&K)[4][4], double (&inv)[4][4]) {
-  // Not zero-filled (a rep stos each, a fifth of this function's time): every entry read is written first.
+  // Not zero-filled: every entry read is written first.
   double L[4][4], D[4], invD[4];
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < i; ++j) {  // L[i][j] Dⱼ = Kᵢⱼ - Σₖ L[i][k] Dₖ L[j][k]
@@ -365,7 +364,7 @@ void formBlock(const Row* b, const double (&unscale)[4], const BodyMass* mass, b
   for (int k = 0; k < n; ++k)
     for (int i = 0; i <= k; ++i)  // symmetric
       K[i][k] = K[k][i] = unscale[k] > 0 ? coupling(b[i], b[k]) * unscale[k] : gammaEntry(b[i], b[k], mass);
-  // Every entry written once (setZero and setIdentity first became a rep stos each, slow to start).
+  // Every entry written once, the unused ones as zero, so nothing is filled twice.
   for (int k = 0; k < 4; ++k)
     for (int i = 0; i < 4; ++i) d.K(i, k) = i < n && k < n ? K[i][k] : 0.0;
   // Four coplanar points make K singular (rank 3): regularise slightly, so the full set's answer
@@ -434,13 +433,13 @@ void ConstraintSet::finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, 
 }
 
 void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h,
-                                Refresh what, double applyScale) {
-  if (what == Refresh::JointJacobians) {
+                                Reformulation what, double applyScale) {
+  if (what == Reformulation::JointJacobians) {
     reformulateJoints(IndexRange{nullptr, 0, static_cast<int>(joints.size())}, poses, mass, h, applyScale);
     return;
   }
   for (const JointRef& ref : joints) formulateJoint(ref, poses, h, false);  // β too
-  if (what == Refresh::All) {
+  if (what == Reformulation::Everything) {
     frames_.assign(poses.begin(), poses.end());
     for (const ContactDef& c : contacts) {
       Row& r = rows[static_cast<size_t>(c.row)];

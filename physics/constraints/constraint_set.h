@@ -45,10 +45,10 @@ class ConstraintSet {
   };
 
   // What a sub-step re-formulation recomputes.
-  enum class Refresh {
-    All,             // A3 (proc3:15): J̌ and β of every constraint from the stepped coordinates
+  enum class Reformulation {
+    Everything,      // A3 (proc3:15): J̌ and β of every constraint from the stepped coordinates
     JointJacobians,  // A4/A5 (IV.3.2): J̌ of the joints; biases follow the update rule; contacts held
-    Joints,          // the soft step: J̌ and β of the joints from the coordinates; contacts held
+    JointRows,       // the soft step: J̌ and β of the joints from the coordinates; contacts held
   };
 
   // Formulates everything at `poses` for time step h (the sub-step h/n under A3-A5). The rows'
@@ -56,10 +56,10 @@ class ConstraintSet {
   // step's when warm starting.
   void build(const Model& model, const std::vector<Manifold>& manifolds, const std::vector<Pose>& poses,
              const std::vector<BodyMass>& mass, const SolverSettings& settings, double h, double applyScale);
-  void reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h, Refresh what,
+  void reformulate(const std::vector<Pose>& poses, const std::vector<BodyMass>& mass, double h, Reformulation what,
                    double applyScale);
   // J̌ of the listed joints (JointRef indices) at `poses`, with their M̌⁻¹J̌ᵀ, effective masses and
-  // blocks: Refresh::JointJacobians for one part of the step.
+  // blocks: Reformulation::JointJacobians for one part of the step.
   void reformulateJoints(const IndexRange& joints, const std::vector<Pose>& poses, const std::vector<BodyMass>& mass,
                          double h, double applyScale);
   // Recomputes M̌⁻¹J̌ᵀ, the effective masses and the blocks of the joint rows after their J̌

@@ -118,7 +118,7 @@ inline double rowVelocity(const Row& r, const Vec3* v, const Vec3* w) {
 }
 
 // v̌ += M̌⁻¹J̌ᵀ dλ.
-// Always inlined: GCC kept it out of line in the sweep's loops, a call per row.
+// Always inlined: it is the innermost work of every sweep, a call per row otherwise.
 __attribute__((always_inline)) inline void applyImpulse(const Row& r, double dl, Vec3& vA, Vec3& wA, Vec3& vB,
                                                         Vec3& wB) {
   vA += dl * (r.mA * r.lin);

@@ -26,7 +26,7 @@ class HavokConceptualStepper final : public Stepper {
       c.rowsHeld = false;  // every row re-formulated between sub-steps
       stepVelocitiesScaled(c, [&c](int j) {  // proc3:15, exactly, from the coordinates at t + (j+1) h/n
         advanceSubPoses(c, j, RotationRule::Product);
-        c.constraints->reformulate(c.subPoses, c.mass, c.h() / c.n(), ConstraintSet::Refresh::All, 1.0);
+        c.constraints->reformulate(c.subPoses, c.mass, c.h() / c.n(), ConstraintSet::Reformulation::Everything, 1.0);
       });
       return;
     }
@@ -63,7 +63,7 @@ class HavokConceptualStepper final : public Stepper {
     if (a_.holdJacobians) {
       // IV.3.2: contacts keep J̌¹ (n ≈ n'); joints are re-formulated (their β too: set below if
       // the bias is updated instead).
-      cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Refresh::Joints, 1.0);
+      cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Reformulation::JointRows, 1.0);
       if (a_.bias == BiasRule::Exact) {  // a contact's β from the moved anchors, its J̌ held
         for (const ContactDef& contact : cs.contacts) {
           Row& r = cs.rows[static_cast<size_t>(contact.row)];
@@ -74,7 +74,7 @@ class HavokConceptualStepper final : public Stepper {
         }
       }
     } else {
-      cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Refresh::All, 1.0);
+      cs.reformulate(c.subPoses, c.mass, dt, ConstraintSet::Reformulation::Everything, 1.0);
     }
     // Velocity-level rows (friction, motors) keep the β just formulated: a target, not a C.
     if (a_.bias == BiasRule::Update) {

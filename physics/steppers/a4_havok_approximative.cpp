@@ -20,7 +20,7 @@ class HavokApproximativeStepper final : public Stepper {
       updateBiases(cs, c.v, c.w);  // proc4:16, with J̌ʲ, before the joints' J̌ is recomputed
       if (cs.joints.empty()) return;
       advanceSubPoses(c, j, RotationRule::Summed);  // proc4:15, joints only
-      cs.reformulate(c.subPoses, c.mass, c.h() / c.n(), ConstraintSet::Refresh::JointJacobians, 1.0);
+      cs.reformulate(c.subPoses, c.mass, c.h() / c.n(), ConstraintSet::Reformulation::JointJacobians, 1.0);
     });
   }
 

@@ -94,7 +94,7 @@ class SoftStepper final : public Stepper {
         c.subPoses[i].q = (c.subPoses[i].q * Rq(h * c.w[i])).normalized();
       }
       recordSubStep(c, j);
-      if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Refresh::Joints, 1.0);
+      if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Reformulation::JointRows, 1.0);
       currentSeparations(cs);
       prepare(cs, h, false, pushOut);
       for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep(c);

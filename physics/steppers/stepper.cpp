@@ -46,8 +46,8 @@ void applyRowImpulses(ConstraintSet& cs, const IndexRange& rows, std::vector<Vec
 namespace {
 
 // Solves A x = r in place (x holds r on entry) for n <= 4 by Cholesky; false if A is not
-// positive definite to working precision (a singular subset of coplanar points). Eigen's
-// dynamic-size LDLT cost a fifth of a pyramid step here.
+// positive definite to working precision (a singular subset of coplanar points). Fixed-size
+// loops: the block is at most 4x4 and solved every sweep (docs/benchmarks.md).
 bool solveSmall(double (&A)[4][4], double (&x)[4], int n) {
   double L[4][4];
   for (int i = 0; i < n; ++i) {
@@ -250,7 +250,7 @@ double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, cons
 
 double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w,
              const SweepScales& k) {
-  // One loop for both forms: a second copy of it made GCC stop inlining the block solves.
+  // One loop for both forms, so that the block solves stay inlined in it (docs/benchmarks.md).
   double change = 0;
   for (int i = 0; i < units.count; ++i)
     solveUnit(cs, cs.units[static_cast<size_t>(units[i])], cs.rows.data(), v.data(), w.data(), k, change);
