@@ -1,6 +1,7 @@
 // substep serve's API (docs/server.md), through httplib's client against the built binary on a
 // free loopback port: every call, bad parameters of every kind, path traversal, the session cap,
 // expiry, a diverging session, SIGINT.
+#include "physics/settings.h"
 #include "render/image.h"
 #include "run_substep.h"
 #include "server_process.h"
@@ -122,6 +123,14 @@ TEST(Server, PageScenesAndMethods) {
       EXPECT_EQ(s["range"]["max"], 10);
     }
   EXPECT_TRUE(kappa);
+  // The schema whole: every setting once, with which algorithms read it and a default for each.
+  ASSERT_EQ(methods.body["settings"].size(), substep::settingTable().size());
+  for (const substep::SettingSpec& spec : substep::settingTable()) {
+    const json& s = methods.body["settings"][spec.index];
+    EXPECT_EQ(s["key"], spec.key);
+    EXPECT_FALSE(s["takes"].empty()) << spec.key;
+    EXPECT_EQ(s["defaults"].size(), 6u) << spec.key;
+  }
   const Answer server = call(*c, "GET", "/api/server");
   EXPECT_EQ(server.body["max_sessions"], 8);
   EXPECT_EQ(server.body["size"], "320x180");
@@ -168,6 +177,8 @@ TEST(Server, SessionLifecycle) {
   EXPECT_EQ(made.body["width"], 320);
   EXPECT_EQ(made.body["playing"], false);
   EXPECT_EQ(made.body["panels"][0]["settings"]["algorithm"], "a2");  // the scene's solver block
+  for (const substep::SettingSpec& spec : substep::settingTable())  // every resolved setting, by its key
+    EXPECT_EQ(made.body["panels"][0]["settings"].contains(spec.key), spec.resolved()) << spec.key;
   EXPECT_EQ(call(*c, "GET", "/api/sessions/" + id).status, 200);
   EXPECT_EQ(call(*c, "GET", "/api/server").body["sessions"], 1);
   const Answer gone = call(*c, "DELETE", "/api/sessions/" + id);
