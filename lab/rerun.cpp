@@ -168,15 +168,23 @@ RerunReport rerunRecord(const json& r, const std::string& where, const std::func
       throw Incomplete(where + ": engine \"" + engineName + "\": expected substep or bullet");
     }
 
+    // A refused record is re-run to its refusal: the same step must refuse again.
+    const bool refused = r.value("refused", false);
     StateHashes hashes(scene.model, steps, want.every);
     Progress bar(progress, done);
-    RunDriver run(*engine, done);
+    RunDriver run(*engine, refused ? steps : done);
     run.add(hashes).add(bar);
     const RunOutcome& o = run.run();
     const RunHashes& got = hashes.hashes();
     const std::string what = scene.file + " under " + line + ", " + std::to_string(done) + " steps";
     const std::string commit = r.contains("commit") && r["commit"].is_string() ? r["commit"].get<std::string>() : "?";
     const std::string built = commit == sourceCommit() ? "" : " (recorded at " + commit + ", re-run at " + sourceCommit() + ")";
+    if (refused != (o.end == RunOutcome::End::Refused)) {
+      out.result = Result::Differs;
+      out.text = what + ": " + (refused ? "the record was refused at step " + std::to_string(done + 1) + ", the re-run was not"
+                                        : "the re-run was refused: " + o.message) + built;
+      return out;
+    }
     if (o.steps != done) {
       out.result = Result::Differs;
       out.text = what + ": the re-run ended at step " + std::to_string(o.steps) + " (" + o.message + "); the record went to step " +
@@ -184,7 +192,11 @@ RerunReport rerunRecord(const json& r, const std::string& where, const std::func
       return out;
     }
     const std::string diff = firstDifference(scene, want, got, dt);
-    if (diff.empty() && got.last == *last) {
+    if (diff.empty() && got.last == *last && refused) {
+      out.result = Result::Same;
+      out.text = scene.file + " under " + line + ": refused again at step " + std::to_string(done + 1) + ", as the record (" +
+                 o.message + ")" + built;
+    } else if (diff.empty() && got.last == *last) {
       out.result = Result::Same;
       out.text = what + ": the same, bit for bit (state hash " + hashText(got.last) + " at step " + std::to_string(done) + ")" + built;
     } else {

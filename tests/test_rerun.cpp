@@ -136,3 +136,13 @@ TEST(Rerun, SweepLinesOneByOneOrAll) {
   r = runSubstep("rerun " + (d / "edited.jsonl").string() + " --line 9");
   EXPECT_EQ(r.status, 2) << r.output;
 }
+
+// A run its algorithm refused is re-run to the same refusal.
+TEST(Rerun, ARefusedRunIsRefusedAgain) {
+  const fs::path d = scratch(), out = d / "a1.jsonl";
+  Outcome r = runSubstep("sweep --scenes pyramid --methods a1 --seconds 0.1 -q -o " + out.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = runSubstep("rerun " + out.string());
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("refused again at step 1, as the record (a1 solves the MLCP"), std::string::npos) << r.output;
+}
