@@ -94,7 +94,8 @@ std::string bodyList(const Scene& scene, const std::vector<int>& bodies) {
 // that differ at the first body checkpoint at or after the step before it.
 std::string firstDifference(const Scene& scene, const RunHashes& want, const RunHashes& got, double dt) {
   long long before = 0, at = -1;
-  for (const auto& [step, hash] : want.steps) {
+  for (const auto& [kept, hash] : want.steps) {
+    const long long step = kept;  // a lambda may not capture a structured binding (C++17)
     const auto it = std::find_if(got.steps.begin(), got.steps.end(), [&](const auto& p) { return p.first == step; });
     if (it == got.steps.end() || it->second != hash) {
       at = step;
@@ -109,7 +110,8 @@ std::string firstDifference(const Scene& scene, const RunHashes& want, const Run
                                    : "first differs after step " + std::to_string(before) + ", by step " +
                                          std::to_string(at) + " (t = " + t + " s; the record kept every " +
                                          std::to_string(want.every) + "-th step's hash)";
-  for (const auto& [step, hashes] : want.bodies) {
+  for (const auto& [kept, hashes] : want.bodies) {
+    const long long step = kept;
     if (step <= before) continue;
     const auto it = std::find_if(got.bodies.begin(), got.bodies.end(), [&](const auto& p) { return p.first == step; });
     if (it == got.bodies.end() || it->second.size() != hashes.size()) break;
