@@ -71,7 +71,7 @@ double margin(const lab::Candidate& c, const lab::Target& t) {
   return 1 - c.value / t.bound;
 }
 
-// --- the plan: targets and candidates checked before the first run -------------------------------
+// --- the plan: targets and candidates checked before the first run ----------------------------
 
 std::vector<lab::Target> adviseTargets(const AdviseCmdOptions& o, const Scene& scene) {
   std::vector<lab::Target> targets;
@@ -124,7 +124,7 @@ void printAdviseHeader(const Scene& scene, const lab::AdviseOptions& ao) {
   for (const lab::Target& t : ao.targets) std::cout << "target    " << t.text() << "\n";
 }
 
-// --- the search ----------------------------------------------------------------------------------
+// --- the search -------------------------------------------------------------------------------
 
 lab::Advice search(const Scene& scene, const lab::AdviseOptions& ao, bool showProgress) {
   Progress progress("advise", static_cast<long long>(candidates(ao).size()), showProgress);
@@ -153,7 +153,7 @@ std::string searchedText(const lab::Advice& a, int budget) {
          std::to_string(stoppedEarly) + " runs stopped when they missed";
 }
 
-// --- the answer ----------------------------------------------------------------------------------
+// --- the answer -------------------------------------------------------------------------------
 
 json candidateJson(const lab::Candidate* c, const AdviseCmdOptions& o, const Scene& scene, const lab::AdviseOptions& ao) {
   if (!c) return nullptr;

@@ -92,7 +92,7 @@ std::string errorText(const SceneResult& r, const lab::AtlasCell& c) {
   return v ? std::string(lab::metricLabel(r.error)) + " " + lab::formatMetric(r.error, *v) : "";
 }
 
-// --- the clips ---------------------------------------------------------------------------------
+// --- the clips --------------------------------------------------------------------------------
 
 // One panel per cell; the panels are never stepped: the states each run kept (Bullet's too) are drawn.
 render::RenderSession clipSession(const SceneResult& r, const std::vector<size_t>& cells) {
@@ -168,7 +168,7 @@ void writeSceneClips(SceneResult& r, const fs::path& dir, const AtlasOptions& o,
   }
 }
 
-// --- the page ----------------------------------------------------------------------------------
+// --- the page ---------------------------------------------------------------------------------
 
 std::string cellClass(lab::Verdict::Result r) {
   switch (r) {
@@ -292,7 +292,7 @@ std::string markdownTable(const std::vector<SceneResult>& results, const std::ve
   return m.str();
 }
 
-// --- the plan: everything given checked before the first run ------------------------------------
+// --- the plan: everything given checked before the first run ----------------------------------
 
 struct AtlasPlan {
   std::vector<lab::Method> methods;
@@ -389,7 +389,7 @@ AtlasPlan planAtlas(const AtlasOptions& o) {
   return plan;
 }
 
-// --- the runs ----------------------------------------------------------------------------------
+// --- the runs ---------------------------------------------------------------------------------
 
 // The scene under every method, each cell's record added to `rows`.
 void runSceneCells(SceneResult& r, const AtlasPlan& plan, const AtlasOptions& o, std::vector<json>& rows, Progress& progress) {
@@ -443,7 +443,7 @@ bool writeAtlasCharts(std::vector<SceneResult>& results, const std::vector<json>
   return !charts.empty();
 }
 
-// --- the files ---------------------------------------------------------------------------------
+// --- the files --------------------------------------------------------------------------------
 
 json atlasMeta(const AtlasOptions& o, const AtlasTimes& t) {
   return {{"commit", lab::sourceCommit()}, {"source", lab::sourceState()}, {"date_utc", lab::utcNow()},

@@ -46,7 +46,7 @@ OutputKind outputKind(const std::string& out) {
                    "\"; use a name ending in .png (one frame), .mp4 (H.264 video) or a folder (PNG sequence)");
 }
 
-// --- the plan: what the options ask for, checked before any work --------------------------------
+// --- the plan: what the options ask for, checked before any work ------------------------------
 
 struct RenderPlan {
   OutputKind kind = OutputKind::Png;
@@ -85,7 +85,7 @@ RenderPlan planRender(const RenderCmdOptions& o) {
   return p;
 }
 
-// --- the frames ----------------------------------------------------------------------------------
+// --- the frames -------------------------------------------------------------------------------
 
 // Wall times of making the frames [s]; the first frame's draw apart, as it includes compiling the shaders.
 struct FrameTimes {
@@ -175,7 +175,7 @@ int produceFrames(RenderSession& session, const RenderCmdOptions& o, const Rende
   return writeSequence(session, *renderer, std::move(sink), o, p, t);
 }
 
-// --- the report ----------------------------------------------------------------------------------
+// --- the report -------------------------------------------------------------------------------
 
 struct PhysicsCost {
   long long steps = 0;

@@ -80,7 +80,7 @@ int compareFiles(const SnapshotOptions& o) {
   return r.match ? 0 : kExitFailure;
 }
 
-// --- a scene's frames against its goldens ------------------------------------------------------
+// --- a scene's frames against its goldens -----------------------------------------------------
 
 void checkSceneOptions(const SnapshotOptions& o) {
   if (!o.diff.empty())

@@ -100,7 +100,7 @@ std::string shortFigure(const json& row) {
   return s;
 }
 
-// --- the plan: the spec, its flags and every scene checked before the first run -------------------
+// --- the plan: the spec, its flags and every scene checked before the first run ---------------
 
 lab::SweepSpec readSpec(const std::string& file) {
   if (file.empty()) return {};
@@ -191,7 +191,7 @@ void printSweepHeader(const SweepOptions& o, const lab::SweepSpec& spec, const l
   std::cout << "; " << (runs.mine - runs.todo.size()) << " already in " << o.output << ", " << runs.todo.size() << " to run\n";
 }
 
-// --- the runs ----------------------------------------------------------------------------------
+// --- the runs ---------------------------------------------------------------------------------
 
 // A scene's reference, prepared when a run first needs it: a resumed sweep with nothing left on the scene skips it.
 const lab::PreparedReference* referenceFor(const Scene& scene, double seconds, std::optional<lab::PreparedReference>& ref) {
