@@ -71,8 +71,9 @@ double margin(const lab::Candidate& c, const lab::Target& t) {
   return 1 - c.value / t.bound;
 }
 
-int runAdvise(const AdviseCmdOptions& o) {
-  Scene scene = load(o.scene, o.limits);
+// --- the plan: targets and candidates checked before the first run ----------------------------
+
+std::vector<lab::Target> adviseTargets(const AdviseCmdOptions& o, const Scene& scene) {
   std::vector<lab::Target> targets;
   auto add = [&](const std::optional<std::string>& text, const std::string& metric, const char* flag) {
     if (!text) return;
@@ -89,9 +90,18 @@ int runAdvise(const AdviseCmdOptions& o) {
   add(o.stand, "stand", "--stand");
   if (targets.empty()) throw UsageError("give a target: --max-error, --max-penetration, --max-joint-error or --stand");
   if (o.maxJointError && scene.model.joints.empty()) throw UsageError("--max-joint-error: " + scene.file + " has no joints");
+  return targets;
+}
+
+std::vector<lab::Method> candidates(const lab::AdviseOptions& ao) {
+  return ao.candidates.empty() ? lab::defaultCandidates() : ao.candidates;
+}
+
+// The search: --stand gives the runs' length, else --seconds, else the scene's criteria, else 5 s.
+lab::AdviseOptions adviseOptions(const AdviseCmdOptions& o, const Scene& scene, std::vector<lab::Target> targets) {
   lab::AdviseOptions ao;
-  ao.targets = targets;
-  ao.seconds = o.stand ? targets.back().bound : o.seconds ? *o.seconds : scene.criteria ? scene.criteria->seconds : 5.0;
+  ao.targets = std::move(targets);
+  ao.seconds = o.stand ? ao.targets.back().bound : o.seconds ? *o.seconds : scene.criteria ? scene.criteria->seconds : 5.0;
   if (o.stand && o.seconds) throw UsageError("--seconds: --stand gives the run's length");
   ao.repeat = o.repeat;
   ao.budget = o.budget;
@@ -100,19 +110,24 @@ int runAdvise(const AdviseCmdOptions& o) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--methods: ") + e.what());
     }
-  for (const lab::Method& m : ao.candidates.empty() ? lab::defaultCandidates() : ao.candidates) try {
+  for (const lab::Method& m : candidates(ao)) try {
       lab::methodSettings(m, scene);
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--methods: ") + m.text + ": " + e.what());
     }
-  if (!o.quiet && !o.json) {
-    std::cout << "scene     " << scene.file << " (" << scene.model.dynamicCount() << " dynamic bodies, " << scene.model.joints.size()
-              << " joints), " << numberText(ao.seconds) << " s per run\n";
-    for (const lab::Target& t : targets) std::cout << "target    " << t.text() << "\n";
-  }
-  InterruptGuard interrupt;
-  Progress progress("advise", static_cast<long long>((ao.candidates.empty() ? lab::defaultCandidates() : ao.candidates).size()),
-                    !o.quiet && !o.json);
+  return ao;
+}
+
+void printAdviseHeader(const Scene& scene, const lab::AdviseOptions& ao) {
+  std::cout << "scene     " << scene.file << " (" << scene.model.dynamicCount() << " dynamic bodies, " << scene.model.joints.size()
+            << " joints), " << numberText(ao.seconds) << " s per run\n";
+  for (const lab::Target& t : ao.targets) std::cout << "target    " << t.text() << "\n";
+}
+
+// --- the search -------------------------------------------------------------------------------
+
+lab::Advice search(const Scene& scene, const lab::AdviseOptions& ao, bool showProgress) {
+  Progress progress("advise", static_cast<long long>(candidates(ao).size()), showProgress);
   lab::Advice a;
   try {
     a = lab::advise(scene, ao, [&](size_t done, size_t, const lab::Candidate&) {
@@ -123,54 +138,88 @@ int runAdvise(const AdviseCmdOptions& o) {
     throw UsageError(scene.file + ": criteria.reference: " + e.what());
   }
   progress.finish();
-  const lab::Candidate* best = a.best >= 0 ? &a.tried[static_cast<size_t>(a.best)] : nullptr;
-  const lab::Candidate* second = a.runnerUp >= 0 ? &a.tried[static_cast<size_t>(a.runnerUp)] : nullptr;
-  const lab::Candidate* closest = a.closest >= 0 ? &a.tried[static_cast<size_t>(a.closest)] : nullptr;
+  return a;
+}
+
+const lab::Candidate* tried(const lab::Advice& a, int index) {
+  return index >= 0 ? &a.tried[static_cast<size_t>(index)] : nullptr;
+}
+
+std::string searchedText(const lab::Advice& a, int budget) {
   int stoppedEarly = 0;
   for (const lab::Candidate& c : a.tried) stoppedEarly += !c.run.stoppedEarly.empty();
-  const std::string searched = std::to_string(a.searched) + " of " + std::to_string(a.total) + " settings, cheapest first" +
-                               (a.budgetSpent ? " (the budget of " + std::to_string(o.budget) + " runs was spent)" : "") + "; " +
-                               std::to_string(stoppedEarly) + " runs stopped when they missed";
-  if (o.json) {
-    auto cand = [&](const lab::Candidate* c) -> json {
-      if (!c) return nullptr;
-      return {{"method", c->method.text},
-              {"ms_per_step", c->run.cost.msPerStep},
-              {"ms_per_second", c->run.msPerSecond()},
-              {"dt", c->run.settings.dt},
-              {"value", std::isfinite(c->value) ? json(c->value) : json(nullptr)},
-              {"margin", std::isfinite(margin(*c, targets.front())) ? json(margin(*c, targets.front())) : json(nullptr)},
-              {"missed", c->missed.empty() ? json(nullptr) : json(c->missed)},
-              {"run", runLine(o.scene, scene, c->method, c->run.settings, ao.seconds)}};
-    };
-    json targetsJson = json::array();
-    for (const lab::Target& t : targets) targetsJson.push_back({{"metric", t.metric}, {"at_most", t.bound}, {"text", t.text()}});
-    json j = {{"scene", scene.file}, {"seconds", ao.seconds}, {"targets", targetsJson}, {"met", best != nullptr},
-              {"best", cand(best)}, {"runner_up", cand(second)}, {"closest", cand(closest)},
-              {"searched", a.searched}, {"candidates", a.total}, {"budget_spent", a.budgetSpent}};
-    if (best && second) j["runner_up_cost_ratio"] = second->run.msPerSecond() / best->run.msPerSecond();
-    std::cout << j.dump(2) << "\n";
-    return best ? 0 : kExitFailure;
-  }
-  if (!o.quiet) std::cout << "searched  " << searched << "\n";
-  if (!best) {
-    std::cout << "nothing   within the searched range meets " << targets.front().text();
-    if (closest) std::cout << "; the closest was " << closest->method.text << " (" << closest->missed << ")";
-    std::cout << "\n";
-    return kExitFailure;
-  }
+  return std::to_string(a.searched) + " of " + std::to_string(a.total) + " settings, cheapest first" +
+         (a.budgetSpent ? " (the budget of " + std::to_string(budget) + " runs was spent)" : "") + "; " +
+         std::to_string(stoppedEarly) + " runs stopped when they missed";
+}
+
+// --- the answer -------------------------------------------------------------------------------
+
+json candidateJson(const lab::Candidate* c, const AdviseCmdOptions& o, const Scene& scene, const lab::AdviseOptions& ao) {
+  if (!c) return nullptr;
+  const double m = margin(*c, ao.targets.front());
+  return {{"method", c->method.text},
+          {"ms_per_step", c->run.cost.msPerStep},
+          {"ms_per_second", c->run.msPerSecond()},
+          {"dt", c->run.settings.dt},
+          {"value", std::isfinite(c->value) ? json(c->value) : json(nullptr)},
+          {"margin", std::isfinite(m) ? json(m) : json(nullptr)},
+          {"missed", c->missed.empty() ? json(nullptr) : json(c->missed)},
+          {"run", runLine(o.scene, scene, c->method, c->run.settings, ao.seconds)}};
+}
+
+int printAdviceJson(const lab::Advice& a, const AdviseCmdOptions& o, const Scene& scene, const lab::AdviseOptions& ao) {
+  const lab::Candidate *best = tried(a, a.best), *second = tried(a, a.runnerUp);
+  json targets = json::array();
+  for (const lab::Target& t : ao.targets) targets.push_back({{"metric", t.metric}, {"at_most", t.bound}, {"text", t.text()}});
+  json j = {{"scene", scene.file}, {"seconds", ao.seconds}, {"targets", targets}, {"met", best != nullptr},
+            {"best", candidateJson(best, o, scene, ao)}, {"runner_up", candidateJson(second, o, scene, ao)},
+            {"closest", candidateJson(tried(a, a.closest), o, scene, ao)},
+            {"searched", a.searched}, {"candidates", a.total}, {"budget_spent", a.budgetSpent}};
+  if (best && second) j["runner_up_cost_ratio"] = second->run.msPerSecond() / best->run.msPerSecond();
+  std::cout << j.dump(2) << "\n";
+  return best ? 0 : kExitFailure;
+}
+
+void printNoneMet(const lab::Candidate* closest, const std::vector<lab::Target>& targets) {
+  std::cout << "nothing   within the searched range meets " << targets.front().text();
+  if (closest) std::cout << "; the closest was " << closest->method.text << " (" << closest->missed << ")";
+  std::cout << "\n";
+}
+
+void printBest(const lab::Candidate& best, const lab::Candidate* second, const std::vector<lab::Target>& targets) {
   std::cout << std::fixed << std::setprecision(0);
-  std::cout << "best      " << best->method.text << "\n          " << costText(best->run) << "; " << valueText(*best, targets);
-  if (std::isfinite(margin(*best, targets.front()))) std::cout << " (" << 100 * margin(*best, targets.front()) << " % under the target)";
+  std::cout << "best      " << best.method.text << "\n          " << costText(best.run) << "; " << valueText(best, targets);
+  if (std::isfinite(margin(best, targets.front()))) std::cout << " (" << 100 * margin(best, targets.front()) << " % under the target)";
   std::cout << "\n";
   if (second) {
     std::cout << "runner-up " << second->method.text << "\n          " << costText(second->run) << " (" << std::setprecision(2)
-              << second->run.msPerSecond() / best->run.msPerSecond() << "x the best's cost); " << valueText(*second, targets) << "\n";
+              << second->run.msPerSecond() / best.run.msPerSecond() << "x the best's cost); " << valueText(*second, targets) << "\n";
   } else {
     std::cout << "runner-up none met the target within the search\n";
   }
+}
+
+int printAdvice(const lab::Advice& a, const AdviseCmdOptions& o, const Scene& scene, const lab::AdviseOptions& ao) {
+  if (!o.quiet) std::cout << "searched  " << searchedText(a, o.budget) << "\n";
+  const lab::Candidate* best = tried(a, a.best);
+  if (!best) {
+    printNoneMet(tried(a, a.closest), ao.targets);
+    return kExitFailure;
+  }
+  printBest(*best, tried(a, a.runnerUp), ao.targets);
   std::cout << "run it    " << runLine(o.scene, scene, best->method, best->run.settings, ao.seconds) << "\n";
   return 0;
+}
+
+int runAdvise(const AdviseCmdOptions& o) {
+  const Scene scene = load(o.scene, o.limits);
+  const lab::AdviseOptions ao = adviseOptions(o, scene, adviseTargets(o, scene));
+  const bool text = !o.quiet && !o.json;
+  if (text) printAdviseHeader(scene, ao);
+  InterruptGuard interrupt;
+  const lab::Advice a = search(scene, ao, text);
+  return o.json ? printAdviceJson(a, o, scene, ao) : printAdvice(a, o, scene, ao);
 }
 
 }  // namespace

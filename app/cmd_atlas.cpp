@@ -92,21 +92,45 @@ std::string errorText(const SceneResult& r, const lab::AtlasCell& c) {
   return v ? std::string(lab::metricLabel(r.error)) + " " + lab::formatMetric(r.error, *v) : "";
 }
 
-// A clip of up to four cells side by side, drawn from the states each run kept (Bullet's too).
-void writeClip(const SceneResult& r, const std::vector<size_t>& cells, const std::string& path, const AtlasOptions& o,
-               render::GlRenderer& renderer, const std::string& ffmpeg) {
+// --- the clips --------------------------------------------------------------------------------
+
+// One panel per cell; the panels are never stepped: the states each run kept (Bullet's too) are drawn.
+render::RenderSession clipSession(const SceneResult& r, const std::vector<size_t>& cells) {
   using namespace render;
   auto scene = std::make_shared<const Scene>(r.scene);
   std::vector<PanelSetup> setups;
   for (size_t i : cells) {
     const lab::RunResult& run = r.cells[i].run;
     SolverSettings s = run.settings;
-    if (run.method.isBullet()) s = resolve(SolverOverrides{});  // the panel is never stepped: Bullet's states are drawn
+    if (run.method.isBullet()) s = resolve(SolverOverrides{});  // a panel needs substep settings; they are never used
     setups.push_back({s, run.method.text});
   }
   Look look;
   look.camera = chooseCamera(*scene, CameraOptions{});
-  RenderSession session(scene, setups, look);
+  return RenderSession(scene, setups, look);
+}
+
+// The state a cell's run kept for frame k; its last one after the run ended.
+const State& clipState(const SceneResult& r, const lab::AtlasCell& c, long long k) {
+  const std::vector<State>& f = c.run.frames;
+  return f.empty() ? r.scene.initial : f[std::min(static_cast<size_t>(k), f.size() - 1)];
+}
+
+// The panel's label: the method and its verdict, in the verdict's colour.
+void labelPanel(render::DrawList& dl, const lab::AtlasCell& c) {
+  std::string verdict = lab::resultName(c.verdict.result);
+  for (char& ch : verdict) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  dl.label = c.run.method.text + "  " + verdict;
+  dl.labelColour = c.verdict.result == lab::Verdict::Result::Pass   ? render::Vec4f(0.55f, 1.0f, 0.55f, 1)
+                   : c.verdict.result == lab::Verdict::Result::Fail ? render::Vec4f(1.0f, 0.55f, 0.5f, 1)
+                                                                    : render::Vec4f(0.8f, 0.8f, 0.8f, 1);
+}
+
+// A clip of up to four cells side by side.
+void writeClip(const SceneResult& r, const std::vector<size_t>& cells, const std::string& path, const AtlasOptions& o,
+               render::GlRenderer& renderer, const std::string& ffmpeg) {
+  using namespace render;
+  RenderSession session = clipSession(r, cells);
   VideoOptions vo;
   vo.fps = o.fps;
   vo.crf = 23;
@@ -118,15 +142,8 @@ void writeClip(const SceneResult& r, const std::vector<size_t>& cells, const std
     std::vector<DrawList> lists;
     for (size_t p = 0; p < cells.size(); ++p) {
       const lab::AtlasCell& c = r.cells[cells[p]];
-      const std::vector<State>& f = c.run.frames;
-      const State& s = f.empty() ? r.scene.initial : f[std::min(static_cast<size_t>(k), f.size() - 1)];
-      DrawList dl = session.drawList(static_cast<int>(p), &s);
-      std::string verdict = lab::resultName(c.verdict.result);
-      for (char& ch : verdict) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
-      dl.label = c.run.method.text + "  " + verdict;
-      dl.labelColour = c.verdict.result == lab::Verdict::Result::Pass   ? Vec4f(0.55f, 1.0f, 0.55f, 1)
-                       : c.verdict.result == lab::Verdict::Result::Fail ? Vec4f(1.0f, 0.55f, 0.5f, 1)
-                                                                        : Vec4f(0.8f, 0.8f, 0.8f, 1);
+      DrawList dl = session.drawList(static_cast<int>(p), &clipState(r, c, k));
+      labelPanel(dl, c);
       lists.push_back(std::move(dl));
     }
     renderer.render(gridViews(lists, renderer.width(), renderer.height()), img);
@@ -134,6 +151,24 @@ void writeClip(const SceneResult& r, const std::vector<size_t>& cells, const std
   }
   sink.commit();
 }
+
+// The scene's clips, four cells to a clip, and each cell's clip and panel in it.
+void writeSceneClips(SceneResult& r, const fs::path& dir, const AtlasOptions& o, render::GlRenderer& renderer,
+                     const std::string& ffmpeg) {
+  const std::string name = lab::sceneName(r.scene);
+  for (size_t g = 0; g * 4 < r.cells.size(); ++g) {
+    std::vector<size_t> group;
+    for (size_t i = g * 4; i < std::min(r.cells.size(), g * 4 + 4); ++i) group.push_back(i);
+    const std::string file = name + "-" + std::to_string(g + 1) + ".mp4";
+    writeClip(r, group, (dir / "clips" / file).string(), o, renderer, ffmpeg);
+    for (size_t p = 0; p < group.size(); ++p) {
+      r.clips[group[p]] = file;
+      r.panels[group[p]] = static_cast<int>(p + 1);
+    }
+  }
+}
+
+// --- the page ---------------------------------------------------------------------------------
 
 std::string cellClass(lab::Verdict::Result r) {
   switch (r) {
@@ -143,9 +178,7 @@ std::string cellClass(lab::Verdict::Result r) {
   }
 }
 
-void writePage(const std::vector<SceneResult>& results, const std::vector<lab::Method>& methods, const json& meta,
-               const lab::VerdictTable* expected, const std::string& path) {
-  std::ostringstream h;
+void writePageHead(std::ostream& h, const json& meta) {
   h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>substep failure atlas</title>\n<style>\n"
        "body{font-family:DejaVu Sans,Arial,sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse;font-size:12px}\n"
        "th,td{border:1px solid #999;padding:4px 6px;vertical-align:top}th{background:#eee}td.scene{max-width:22em}\n"
@@ -160,42 +193,49 @@ void writePage(const std::vector<SceneResult>& results, const std::vector<lab::M
     << ", " << html(meta["cpu"].get<std::string>()) << "; physics runs " << fixed(meta["physics_seconds"].get<double>(), 1)
     << " s, clips " << fixed(meta["clip_seconds"].get<double>(), 1) << " s, charts " << fixed(meta["chart_seconds"].get<double>(), 1)
     << " s (wall).</p>\n";
-  h << "<table>\n<tr><th>scene: what it stresses; pass criteria</th>";
-  for (const lab::Method& m : methods) h << "<th>" << html(m.text) << "</th>";
-  h << "</tr>\n";
+}
+
+// The verdict the expected table gives the cell when it differs from `result`, else "".
+std::string expectedOtherwise(const lab::VerdictTable* expected, const std::string& scene, const std::string& method,
+                              const std::string& result) {
+  if (!expected) return "";
+  const auto row = expected->find(scene);
+  if (row == expected->end()) return "";
+  const auto cell = row->second.find(method);
+  return cell != row->second.end() && cell->second != result ? cell->second : "";
+}
+
+void writeCellHtml(std::ostream& h, const SceneResult& r, size_t i, const std::string& was) {
+  const lab::AtlasCell& c = r.cells[i];
+  h << "<td class=\"" << cellClass(c.verdict.result) << (was.empty() ? "" : " changed") << "\"><span class=\"v\">"
+    << lab::resultName(c.verdict.result) << "</span>" << (was.empty() ? "" : " <span class=\"small\">(expected " + was + ")</span>")
+    << "<br>" << html(c.verdict.figure);
+  const std::string err = errorText(r, c);
+  if (!err.empty() && c.verdict.figure.find(lab::metricLabel(r.error)) == std::string::npos) h << "<br>" << html(err);
+  if (!c.run.refused) h << "<br><span class=\"small\">" << fixed(c.run.cost.msPerStep, 3) << " ms/step</span>";
+  if (!r.clips[i].empty())
+    h << "<br><a href=\"clips/" << html(r.clips[i]) << "\">clip</a> <span class=\"small\">(panel " << r.panels[i] << ")</span>";
+  h << "</td>";
+}
+
+// A scene's row of the table; returns how many of its verdicts differ from the expected table.
+int writeSceneRowHtml(std::ostream& h, const SceneResult& r, const lab::VerdictTable* expected) {
+  const std::string name = lab::sceneName(r.scene);
+  h << "<tr><td class=\"scene\"><b><a href=\"#" << html(name) << "\">" << html(name) << "</a></b><br><span class=\"small\">"
+    << html(r.scene.criteria ? r.scene.criteria->stresses : r.scene.description) << "<br><i>pass: " << html(criteriaText(r.scene))
+    << "</i></span></td>";
   int changed = 0;
-  for (const SceneResult& r : results) {
-    const std::string name = lab::sceneName(r.scene);
-    h << "<tr><td class=\"scene\"><b><a href=\"#" << html(name) << "\">" << html(name) << "</a></b><br><span class=\"small\">"
-      << html(r.scene.criteria ? r.scene.criteria->stresses : r.scene.description) << "<br><i>pass: " << html(criteriaText(r.scene))
-      << "</i></span></td>";
-    for (size_t i = 0; i < r.cells.size(); ++i) {
-      const lab::AtlasCell& c = r.cells[i];
-      const std::string result = lab::resultName(c.verdict.result);
-      std::string was;
-      if (expected) {
-        const auto row = expected->find(name);
-        if (row != expected->end()) {
-          const auto cell = row->second.find(c.run.method.text);
-          if (cell != row->second.end() && cell->second != result) was = cell->second;
-        }
-      }
-      changed += !was.empty();
-      h << "<td class=\"" << cellClass(c.verdict.result) << (was.empty() ? "" : " changed") << "\"><span class=\"v\">" << result
-        << "</span>" << (was.empty() ? "" : " <span class=\"small\">(expected " + was + ")</span>") << "<br>" << html(c.verdict.figure);
-      const std::string err = errorText(r, c);
-      if (!err.empty() && c.verdict.figure.find(lab::metricLabel(r.error)) == std::string::npos) h << "<br>" << html(err);
-      if (!c.run.refused) h << "<br><span class=\"small\">" << fixed(c.run.cost.msPerStep, 3) << " ms/step</span>";
-      if (!r.clips[i].empty())
-        h << "<br><a href=\"clips/" << html(r.clips[i]) << "\">clip</a> <span class=\"small\">(panel " << r.panels[i] << ")</span>";
-      h << "</td>";
-    }
-    h << "</tr>\n";
+  for (size_t i = 0; i < r.cells.size(); ++i) {
+    const lab::AtlasCell& c = r.cells[i];
+    const std::string was = expectedOtherwise(expected, name, c.run.method.text, lab::resultName(c.verdict.result));
+    changed += !was.empty();
+    writeCellHtml(h, r, i, was);
   }
-  h << "</table>\n";
-  if (expected)
-    h << "<p>" << (changed ? std::to_string(changed) + " verdicts differ from" : "Every verdict agrees with")
-      << " the expected table (<code>tests/data/atlas_expected.json</code>)" << (changed ? ": outlined in orange." : ".") << "</p>\n";
+  h << "</tr>\n";
+  return changed;
+}
+
+void writeChartsHtml(std::ostream& h, const std::vector<SceneResult>& results) {
   h << "<h2>Charts: error against cost</h2>\n<p>Per scene, each method a point (its family's colour), the Pareto front "
        "dashed: the runs no other beats in both cost and error. Diverged runs are crosses at the top.</p>\n";
   for (const SceneResult& r : results) {
@@ -203,10 +243,31 @@ void writePage(const std::vector<SceneResult>& results, const std::vector<lab::M
     h << "<h3 id=\"" << html(name) << "\">" << html(name) << "</h3>\n<p class=\"small\">" << html(r.scene.description) << "</p>\n";
     if (!r.chart.empty()) h << "<img src=\"" << html(r.chart) << "\" alt=\"" << html(name) << ": error against cost\">\n";
   }
-  h << "</body></html>\n";
+}
+
+// Written under a temporary name and renamed over `path`.
+void writeText(const std::string& path, const std::string& text) {
   AtomicFile f(path);
-  f.out() << h.str();
+  f.out() << text;
   f.commit();
+}
+
+void writePage(const std::vector<SceneResult>& results, const std::vector<lab::Method>& methods, const json& meta,
+               const lab::VerdictTable* expected, const std::string& path) {
+  std::ostringstream h;
+  writePageHead(h, meta);
+  h << "<table>\n<tr><th>scene: what it stresses; pass criteria</th>";
+  for (const lab::Method& m : methods) h << "<th>" << html(m.text) << "</th>";
+  h << "</tr>\n";
+  int changed = 0;
+  for (const SceneResult& r : results) changed += writeSceneRowHtml(h, r, expected);
+  h << "</table>\n";
+  if (expected)
+    h << "<p>" << (changed ? std::to_string(changed) + " verdicts differ from" : "Every verdict agrees with")
+      << " the expected table (<code>tests/data/atlas_expected.json</code>)" << (changed ? ": outlined in orange." : ".") << "</p>\n";
+  writeChartsHtml(h, results);
+  h << "</body></html>\n";
+  writeText(path, h.str());
 }
 
 std::string markdownTable(const std::vector<SceneResult>& results, const std::vector<lab::Method>& methods) {
@@ -231,44 +292,72 @@ std::string markdownTable(const std::vector<SceneResult>& results, const std::ve
   return m.str();
 }
 
-int runAtlas(const AtlasOptions& o) {
+// --- the plan: everything given checked before the first run ----------------------------------
+
+struct AtlasPlan {
   std::vector<lab::Method> methods;
+  std::vector<SceneResult> results;  // a scene each, in order; the runs fill in the rest
+  int width = 0, height = 0;         // of the clips
+  std::unique_ptr<lab::VerdictTable> expected;
+  std::string ffmpeg;                // "" with --no-clips
+  fs::path dir;
+};
+
+// Wall times [s].
+struct AtlasTimes {
+  double physics = 0, clips = 0, charts = 0;
+};
+
+std::vector<lab::Method> atlasMethods(const std::string& text) {
   try {
-    methods = lab::parseMethods(o.methods);
+    return lab::parseMethods(text);
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--methods: ") + e.what());
   }
+}
+
+// Every atlas scene, or those named: a name that is not a scene of assets/scenes is one of the atlas's.
+std::vector<std::string> atlasScenePaths(const std::vector<std::string>& scenes) {
   std::vector<std::string> paths;
-  if (o.scenes.empty())
+  if (scenes.empty())
     paths = lab::atlasScenes(assetsDir() + "/scenes/atlas");
   else
-    for (const std::string& s : o.scenes) {
+    for (const std::string& s : scenes) {
       const std::string p = scenePath(s);
       paths.push_back(p.find('/') == std::string::npos || fs::exists(p) ? p : assetsDir() + "/scenes/atlas/" + s + ".json");
     }
   if (paths.empty()) throw UsageError("no atlas scenes in " + assetsDir() + "/scenes/atlas");
-  int width = 0, height = 0;
-  {
-    const size_t x = o.size.find('x');
-    try {
-      width = x == std::string::npos ? 0 : std::stoi(o.size.substr(0, x));
-      height = x == std::string::npos ? 0 : std::stoi(o.size.substr(x + 1));
-    } catch (const std::exception&) {
-    }
-    if (width < 64 || height < 64 || width > 3840 || height > 2160 || width % 2 || height % 2)
-      throw UsageError("--size: expected WIDTHxHEIGHT, even, 64x64 to 3840x2160, got \"" + o.size + "\"");
+  return paths;
+}
+
+void parseClipSize(const std::string& size, int& width, int& height) {
+  const size_t x = size.find('x');
+  try {
+    width = x == std::string::npos ? 0 : std::stoi(size.substr(0, x));
+    height = x == std::string::npos ? 0 : std::stoi(size.substr(x + 1));
+  } catch (const std::exception&) {
   }
-  std::unique_ptr<lab::VerdictTable> expected;
-  if (!o.expected.empty()) try {
-      expected = std::make_unique<lab::VerdictTable>(lab::readVerdicts(o.expected));
-    } catch (const std::runtime_error& e) {
-      throw UsageError(std::string("--expected: ") + e.what());
-    }
-  std::string ffmpeg;
-  if (!o.noClips) {
-    ffmpeg = render::findFfmpeg();
-    if (ffmpeg.empty()) throw UsageError("clips need ffmpeg, which is not on PATH (Debian: apt-get install ffmpeg); or give --no-clips");
+  if (width < 64 || height < 64 || width > 3840 || height > 2160 || width % 2 || height % 2)
+    throw UsageError("--size: expected WIDTHxHEIGHT, even, 64x64 to 3840x2160, got \"" + size + "\"");
+}
+
+std::unique_ptr<lab::VerdictTable> readExpected(const std::string& path) {
+  if (path.empty()) return nullptr;
+  try {
+    return std::make_unique<lab::VerdictTable>(lab::readVerdicts(path));
+  } catch (const std::runtime_error& e) {
+    throw UsageError(std::string("--expected: ") + e.what());
   }
+}
+
+std::string clipEncoder(bool noClips) {
+  if (noClips) return "";
+  const std::string ffmpeg = render::findFfmpeg();
+  if (ffmpeg.empty()) throw UsageError("clips need ffmpeg, which is not on PATH (Debian: apt-get install ffmpeg); or give --no-clips");
+  return ffmpeg;
+}
+
+std::vector<SceneResult> loadAtlasScenes(const std::vector<std::string>& paths) {
   std::vector<SceneResult> results;
   for (const std::string& p : paths) {
     SceneResult r;
@@ -277,133 +366,172 @@ int runAtlas(const AtlasOptions& o) {
     r.error = lab::errorMetric(r.scene);
     results.push_back(std::move(r));
   }
+  return results;
+}
+
+void checkOutputs(const AtlasOptions& o) {
   const fs::path dir(o.output);
   checkWritable((dir / "index.html").string(), "-o " + o.output);
   if (!o.noClips) checkWritable((dir / "clips" / "x.mp4").string(), "-o " + o.output);
   if (!o.writeExpected.empty()) checkWritable(o.writeExpected, "--write-expected");
-  if (!o.quiet)
-    std::cout << "atlas     " << results.size() << " scenes x " << methods.size() << " methods" << (o.noClips ? "" : ", with clips")
-              << " -> " << o.output << "\n";
+}
 
-  InterruptGuard interrupt;
+AtlasPlan planAtlas(const AtlasOptions& o) {
+  AtlasPlan plan;
+  plan.methods = atlasMethods(o.methods);
+  const std::vector<std::string> paths = atlasScenePaths(o.scenes);
+  parseClipSize(o.size, plan.width, plan.height);
+  plan.expected = readExpected(o.expected);
+  plan.ffmpeg = clipEncoder(o.noClips);
+  plan.results = loadAtlasScenes(paths);
+  plan.dir = o.output;
+  checkOutputs(o);
+  return plan;
+}
+
+// --- the runs ---------------------------------------------------------------------------------
+
+// The scene under every method, each cell's record added to `rows`.
+void runSceneCells(SceneResult& r, const AtlasPlan& plan, const AtlasOptions& o, std::vector<json>& rows, Progress& progress) {
+  try {
+    r.cells = lab::runAtlasScene(r.scene, plan.methods, o.noClips ? 0 : o.fps, o.repeat);
+  } catch (const lab::ReferenceError& e) {
+    throw UsageError(r.scene.file + ": criteria.reference: " + e.what());
+  }
+  for (const lab::AtlasCell& c : r.cells) {
+    rows.push_back(lab::recordJson(r.scene, c.run, r.scene.criteria->seconds, o.repeat));
+    progress.update(static_cast<long long>(rows.size()));
+  }
+  r.clips.assign(r.cells.size(), "");
+  r.panels.assign(r.cells.size(), 0);
+}
+
+// Every scene's runs, and its clips before the next scene runs (the states kept for them are then let go).
+std::vector<json> runAtlasScenes(AtlasPlan& plan, const AtlasOptions& o, AtlasTimes& times) {
   const double t0 = nowSeconds();
-  Progress progress("atlas", static_cast<long long>(results.size() * methods.size()), !o.quiet);
+  Progress progress("atlas", static_cast<long long>(plan.results.size() * plan.methods.size()), !o.quiet);
   std::vector<json> rows;
-  long long done = 0;
   std::unique_ptr<render::GlRenderer> renderer;
-  double clipSeconds = 0;
-  for (SceneResult& r : results) {
+  for (SceneResult& r : plan.results) {
     if (InterruptGuard::interrupted()) throw Interrupted();
-    try {
-      r.cells = lab::runAtlasScene(r.scene, methods, o.noClips ? 0 : o.fps, o.repeat);
-    } catch (const lab::ReferenceError& e) {
-      throw UsageError(r.scene.file + ": criteria.reference: " + e.what());
-    }
-    for (const lab::AtlasCell& c : r.cells) {
-      rows.push_back(lab::recordJson(r.scene, c.run, r.scene.criteria->seconds, o.repeat));
-      progress.update(++done);
-    }
-    r.clips.assign(r.cells.size(), "");
-    r.panels.assign(r.cells.size(), 0);
+    runSceneCells(r, plan, o, rows, progress);
     if (!o.noClips) {
       const double c0 = nowSeconds();
-      if (!renderer) renderer = std::make_unique<render::GlRenderer>(width, height);
-      const std::string name = lab::sceneName(r.scene);
-      for (size_t g = 0; g * 4 < r.cells.size(); ++g) {
-        std::vector<size_t> group;
-        for (size_t i = g * 4; i < std::min(r.cells.size(), g * 4 + 4); ++i) group.push_back(i);
-        const std::string file = name + "-" + std::to_string(g + 1) + ".mp4";
-        writeClip(r, group, (dir / "clips" / file).string(), o, *renderer, ffmpeg);
-        for (size_t p = 0; p < group.size(); ++p) {
-          r.clips[group[p]] = file;
-          r.panels[group[p]] = static_cast<int>(p + 1);
-        }
-      }
-      clipSeconds += nowSeconds() - c0;
+      if (!renderer) renderer = std::make_unique<render::GlRenderer>(plan.width, plan.height);
+      writeSceneClips(r, plan.dir, o, *renderer, plan.ffmpeg);
+      times.clips += nowSeconds() - c0;
     }
-    for (lab::AtlasCell& c : r.cells) std::vector<State>().swap(c.run.frames);  // the clip is written
+    for (lab::AtlasCell& c : r.cells) std::vector<State>().swap(c.run.frames);
   }
   progress.finish();
-  const double physics = nowSeconds() - t0 - clipSeconds;
+  times.physics = nowSeconds() - t0 - times.clips;
+  return rows;
+}
 
-  const double ch0 = nowSeconds();
+// Error against cost per scene; a scene's chart is linked when one was drawn. Returns whether any was.
+bool writeAtlasCharts(std::vector<SceneResult>& results, const std::vector<json>& rows, const fs::path& dir, bool quiet) {
   std::vector<std::string> charts;
   try {
     charts = writeCharts(rows, lab::ChartOptions{}, (dir / "charts").string(), true);
   } catch (const UsageError& e) {
-    if (!o.quiet) std::cerr << "substep atlas: no charts: " << e.what() << "\n";
+    if (!quiet) std::cerr << "substep atlas: no charts: " << e.what() << "\n";
   }
   for (SceneResult& r : results) {
     const std::string png = (dir / "charts" / (lab::sceneName(r.scene) + "-pareto.png")).string();
     if (std::find(charts.begin(), charts.end(), png) != charts.end()) r.chart = "charts/" + lab::sceneName(r.scene) + "-pareto.png";
   }
-  const double chartSeconds = nowSeconds() - ch0;
+  return !charts.empty();
+}
 
-  json meta = {{"commit", lab::sourceCommit()}, {"source", lab::sourceState()}, {"date_utc", lab::utcNow()},
-               {"cpu", lab::cpuModel()},        {"load_average", lab::loadAverage()}, {"physics_seconds", physics},
-               {"clip_seconds", clipSeconds},   {"chart_seconds", chartSeconds},      {"methods", o.methods}};
+// --- the files --------------------------------------------------------------------------------
+
+json atlasMeta(const AtlasOptions& o, const AtlasTimes& t) {
+  return {{"commit", lab::sourceCommit()}, {"source", lab::sourceState()}, {"date_utc", lab::utcNow()},
+          {"cpu", lab::cpuModel()},        {"load_average", lab::loadAverage()}, {"physics_seconds", t.physics},
+          {"clip_seconds", t.clips},       {"chart_seconds", t.charts},          {"methods", o.methods}};
+}
+
+lab::VerdictTable measuredVerdicts(const std::vector<SceneResult>& results) {
   lab::VerdictTable measured;
-  json scenes = json::array();
-  for (const SceneResult& r : results) {
-    const std::string name = lab::sceneName(r.scene);
-    json cells = json::array();
-    for (size_t i = 0; i < r.cells.size(); ++i) {
-      const lab::AtlasCell& c = r.cells[i];
-      measured[name][c.run.method.text] = lab::resultName(c.verdict.result);
-      cells.push_back({{"method", c.run.method.text},
-                       {"verdict", lab::resultName(c.verdict.result)},
-                       {"figure", c.verdict.figure},
-                       {"error", errorText(r, c)},
-                       {"ms_per_step", c.run.refused ? json(nullptr) : json(c.run.cost.msPerStep)},
-                       {"wall_seconds", c.wallSeconds},
-                       {"clip", r.clips[i].empty() ? json(nullptr) : json("clips/" + r.clips[i])},
-                       {"panel", r.panels[i]}});
-    }
-    scenes.push_back({{"scene", name},
-                      {"file", r.scene.file},
-                      {"description", r.scene.description},
-                      {"stresses", r.scene.criteria->stresses},
-                      {"criteria", criteriaText(r.scene)},
-                      {"chart", r.chart},
-                      {"cells", cells}});
-  }
+  for (const SceneResult& r : results)
+    for (const lab::AtlasCell& c : r.cells) measured[lab::sceneName(r.scene)][c.run.method.text] = lab::resultName(c.verdict.result);
+  return measured;
+}
+
+json cellJson(const SceneResult& r, size_t i) {
+  const lab::AtlasCell& c = r.cells[i];
+  return {{"method", c.run.method.text},
+          {"verdict", lab::resultName(c.verdict.result)},
+          {"figure", c.verdict.figure},
+          {"error", errorText(r, c)},
+          {"ms_per_step", c.run.refused ? json(nullptr) : json(c.run.cost.msPerStep)},
+          {"wall_seconds", c.wallSeconds},
+          {"clip", r.clips[i].empty() ? json(nullptr) : json("clips/" + r.clips[i])},
+          {"panel", r.panels[i]}};
+}
+
+json sceneJson(const SceneResult& r) {
+  json cells = json::array();
+  for (size_t i = 0; i < r.cells.size(); ++i) cells.push_back(cellJson(r, i));
+  return {{"scene", lab::sceneName(r.scene)},
+          {"file", r.scene.file},
+          {"description", r.scene.description},
+          {"stresses", r.scene.criteria->stresses},
+          {"criteria", criteriaText(r.scene)},
+          {"chart", r.chart},
+          {"cells", cells}};
+}
+
+std::string atlasJsonText(const std::vector<SceneResult>& results, const json& meta, const lab::VerdictTable& measured) {
   json doc = meta;
-  doc["scenes"] = scenes;
+  doc["scenes"] = json::array();
+  for (const SceneResult& r : results) doc["scenes"].push_back(sceneJson(r));
   doc["verdicts"] = lab::verdictsJson(measured);
-  {
-    AtomicFile f((dir / "atlas.json").string());
-    f.out() << doc.dump(1) << "\n";
-    f.commit();
-  }
-  {
-    AtomicFile f((dir / "atlas.jsonl").string());
-    for (const json& r : rows) f.out() << r.dump() << "\n";
-    f.commit();
-  }
-  {
-    AtomicFile f((dir / "atlas.md").string());
-    f.out() << "Measured at commit " << lab::sourceCommit() << " (" << lab::utcNow() << "), `substep atlas`:\n\n"
-            << markdownTable(results, methods);
-    f.commit();
-  }
-  if (!o.writeExpected.empty()) {
-    AtomicFile f(o.writeExpected);
-    f.out() << json{{"commit", lab::sourceCommit()},
-                    {"note", "Expected atlas verdicts (tests/test_atlas.cpp). Rewrite on purpose: substep atlas --no-clips "
-                             "--write-expected tests/data/atlas_expected.json -o out/atlas"},
-                    {"verdicts", lab::verdictsJson(measured)}}
-                   .dump(1)
-            << "\n";
-    f.commit();
-  }
-  writePage(results, methods, meta, expected.get(), (dir / "index.html").string());
-  if (!o.quiet) {
-    std::cout << "\n" << markdownTable(results, methods) << "\n"
-              << "physics   " << fixed(physics, 1) << " s; clips " << fixed(clipSeconds, 1) << " s; charts " << fixed(chartSeconds, 1)
-              << " s\nwrote     " << (dir / "index.html").string() << ", atlas.json, atlas.jsonl, atlas.md"
-              << (o.noClips ? "" : ", clips/") << (charts.empty() ? "" : ", charts/") << "\n";
-    if (!o.writeExpected.empty()) std::cout << "wrote     " << o.writeExpected << "\n";
-  }
+  return doc.dump(1) + "\n";
+}
+
+std::string expectedJsonText(const lab::VerdictTable& measured) {
+  return json{{"commit", lab::sourceCommit()},
+              {"note", "Expected atlas verdicts (tests/test_atlas.cpp). Rewrite on purpose: substep atlas --no-clips "
+                       "--write-expected tests/data/atlas_expected.json -o out/atlas"},
+              {"verdicts", lab::verdictsJson(measured)}}
+             .dump(1) +
+         "\n";
+}
+
+void writeAtlasFiles(const AtlasPlan& plan, const AtlasOptions& o, const std::vector<json>& rows, const json& meta) {
+  const lab::VerdictTable measured = measuredVerdicts(plan.results);
+  writeText((plan.dir / "atlas.json").string(), atlasJsonText(plan.results, meta, measured));
+  std::string lines;
+  for (const json& r : rows) lines += r.dump() + "\n";
+  writeText((plan.dir / "atlas.jsonl").string(), lines);
+  writeText((plan.dir / "atlas.md").string(), "Measured at commit " + lab::sourceCommit() + " (" + lab::utcNow() +
+                                                  "), `substep atlas`:\n\n" + markdownTable(plan.results, plan.methods));
+  if (!o.writeExpected.empty()) writeText(o.writeExpected, expectedJsonText(measured));
+  writePage(plan.results, plan.methods, meta, plan.expected.get(), (plan.dir / "index.html").string());
+}
+
+void printSummary(const AtlasPlan& plan, const AtlasOptions& o, const AtlasTimes& t, bool charts) {
+  std::cout << "\n" << markdownTable(plan.results, plan.methods) << "\n"
+            << "physics   " << fixed(t.physics, 1) << " s; clips " << fixed(t.clips, 1) << " s; charts " << fixed(t.charts, 1)
+            << " s\nwrote     " << (plan.dir / "index.html").string() << ", atlas.json, atlas.jsonl, atlas.md"
+            << (o.noClips ? "" : ", clips/") << (charts ? ", charts/" : "") << "\n";
+  if (!o.writeExpected.empty()) std::cout << "wrote     " << o.writeExpected << "\n";
+}
+
+int runAtlas(const AtlasOptions& o) {
+  AtlasPlan plan = planAtlas(o);
+  if (!o.quiet)
+    std::cout << "atlas     " << plan.results.size() << " scenes x " << plan.methods.size() << " methods"
+              << (o.noClips ? "" : ", with clips") << " -> " << o.output << "\n";
+  InterruptGuard interrupt;
+  AtlasTimes times;
+  const std::vector<json> rows = runAtlasScenes(plan, o, times);
+  const double c0 = nowSeconds();
+  const bool charts = writeAtlasCharts(plan.results, rows, plan.dir, o.quiet);
+  times.charts = nowSeconds() - c0;
+  writeAtlasFiles(plan, o, rows, atlasMeta(o, times));
+  if (!o.quiet) printSummary(plan, o, times, charts);
   return 0;
 }
 

@@ -46,6 +46,195 @@ OutputKind outputKind(const std::string& out) {
                    "\"; use a name ending in .png (one frame), .mp4 (H.264 video) or a folder (PNG sequence)");
 }
 
+// --- the plan: what the options ask for, checked before any work ------------------------------
+
+struct RenderPlan {
+  OutputKind kind = OutputKind::Png;
+  int width = 0, height = 0;
+  std::string ffmpeg;   // for a video
+  long long frames = 1;
+};
+
+// --seconds and --at each belong to one kind of output; H.264 (yuv420p) takes even sides only.
+void checkOutputOptions(const RenderCmdOptions& o, const RenderPlan& p) {
+  if (p.kind == OutputKind::Png && o.seconds)
+    throw UsageError("--seconds: a .png output is one frame; give its time with --at, or write .mp4 or a folder");
+  if (p.kind != OutputKind::Png && o.at)
+    throw UsageError("--at: only for a single .png frame; videos and sequences run from 0 for --seconds");
+  if (p.kind == OutputKind::Video && (p.width % 2 || p.height % 2))
+    throw UsageError("--size " + o.draw.size + ": H.264 (yuv420p) needs an even width and height");
+}
+
+std::string videoEncoder(const std::string& output) {
+  const std::string ffmpeg = findFfmpeg();
+  if (ffmpeg.empty())
+    throw UsageError("-o " + output + ": writing MP4 needs the ffmpeg program, which is not " +
+                     (std::getenv("SUBSTEP_FFMPEG") ? std::string("at $SUBSTEP_FFMPEG") : "on PATH") +
+                     " (Debian: apt-get install ffmpeg), or write PNG frames to a folder instead");
+  return ffmpeg;
+}
+
+RenderPlan planRender(const RenderCmdOptions& o) {
+  RenderPlan p;
+  parseFrameSize(o.draw.size, p.width, p.height);
+  p.kind = outputKind(o.output);
+  checkOutputOptions(o, p);
+  o.draw.colourMode();
+  if (p.kind == OutputKind::Video) p.ffmpeg = videoEncoder(o.output);
+  p.frames = p.kind == OutputKind::Png ? 1 : std::max(1LL, std::llround(o.seconds.value_or(10.0) * o.fps));
+  return p;
+}
+
+// --- the frames -------------------------------------------------------------------------------
+
+// Wall times of making the frames [s]; the first frame's draw apart, as it includes compiling the shaders.
+struct FrameTimes {
+  double draw = 0, firstDraw = 0, finish = 0, write = 0, waitPhysics = 0, waitWriting = 0, wall = 0;
+  std::string glInfo;
+};
+
+std::unique_ptr<FrameSink> openSink(const RenderCmdOptions& o, const RenderPlan& p) {
+  try {
+    if (p.kind == OutputKind::Png) {
+      checkWritable(o.output, o.output);
+      return std::make_unique<PngSink>(o.output);
+    }
+    if (p.kind == OutputKind::Folder) {
+      checkWritable(PngFolderSink::stagingPath(o.output), "-o " + o.output);
+      return std::make_unique<PngFolderSink>(o.output);
+    }
+    checkWritable(o.output, "-o " + o.output);
+    VideoOptions vo;
+    vo.fps = o.fps;
+    vo.crf = o.crf;
+    vo.preset = o.encoderPreset;
+    return std::make_unique<VideoSink>(p.ffmpeg, o.output, p.width, p.height, vo);
+  } catch (const OutputError& e) {
+    throw UsageError(std::string("-o ") + e.what());
+  }
+}
+
+// The frame at --at: a single frame far into a run is mostly stepping, so progress is over the steps.
+int writeStill(RenderSession& session, GlRenderer& renderer, FrameSink& sink, const RenderCmdOptions& o,
+               const RenderPlan& p, FrameTimes& t) {
+  advanceShowingSteps(session, o.at.value_or(0.0), o.draw.quiet);
+  if (const Panel* d = session.firstDiverged()) return reportDivergence("substep render", *d);
+  stopIfInterrupted();
+  Image img;
+  const double r0 = nowSeconds();
+  renderer.render(gridViews(session.drawLists(), p.width, p.height), img);
+  t.firstDraw = nowSeconds() - r0;
+  const double w0 = nowSeconds();
+  sink.write(img);
+  sink.commit();
+  t.write = nowSeconds() - w0;
+  return 0;
+}
+
+// Frames at --fps from 0: three threads, the physics stepping ahead (render/ahead.h), this one
+// drawing, and the frames drawn anti-aliased and written (piped to ffmpeg, or encoded as PNG)
+// beside the drawing of the next.
+int writeSequence(RenderSession& session, GlRenderer& renderer, std::unique_ptr<FrameSink> sink, const RenderCmdOptions& o,
+                  const RenderPlan& p, FrameTimes& t) {
+  ThreadedSink out(std::move(sink));
+  RawFrame raw;  // buffers go round between the threads: no page faults per frame
+  std::vector<double> times(static_cast<size_t>(p.frames));
+  for (long long k = 0; k < p.frames; ++k) times[static_cast<size_t>(k)] = static_cast<double>(k) / o.fps;
+  SessionAhead ahead(session, std::move(times));
+  Progress progress("render", p.frames);
+  for (long long k = 0; k < p.frames; ++k) {
+    stopIfInterrupted();
+    const SessionAhead::Frame f = ahead.next();
+    if (f.diverged) {
+      ahead.stop();
+      return reportDivergence("substep render", *session.firstDiverged());
+    }
+    const double r0 = nowSeconds();
+    renderer.draw(gridViews(f.lists, p.width, p.height), raw);
+    (k == 0 ? t.firstDraw : t.draw) += nowSeconds() - r0;
+    out.pass(raw);
+    if (!o.draw.quiet) progress.update(k + 1);
+  }
+  if (!o.draw.quiet) progress.finish();
+  ahead.stop();
+  out.commit();
+  t.write = out.writeSeconds();
+  t.finish = out.finishSeconds();
+  t.waitPhysics = ahead.waitedSeconds();
+  t.waitWriting = out.waitedSeconds();
+  return 0;
+}
+
+// The frames drawn into the output; 0, or the exit status of a diverged panel (nothing written).
+int produceFrames(RenderSession& session, const RenderCmdOptions& o, const RenderPlan& p, FrameTimes& t) {
+  InterruptGuard interrupts;
+  std::unique_ptr<FrameSink> sink = openSink(o, p);
+  const std::unique_ptr<GlRenderer> renderer = o.draw.makeRenderer(p.width, p.height);
+  t.glInfo = renderer->glInfo();
+  if (p.kind == OutputKind::Png) return writeStill(session, *renderer, *sink, o, p, t);
+  return writeSequence(session, *renderer, std::move(sink), o, p, t);
+}
+
+// --- the report -------------------------------------------------------------------------------
+
+struct PhysicsCost {
+  long long steps = 0;
+  double seconds = 0;
+  double msPerStep() const { return steps ? 1e3 * seconds / steps : 0.0; }
+};
+
+PhysicsCost physicsCost(const RenderSession& session) {
+  PhysicsCost c;
+  for (int i = 0; i < session.panelCount(); ++i) c.steps += session.panel(i).steps(), c.seconds += session.panel(i).physicsSeconds();
+  return c;
+}
+
+void printStillTimes(const PhysicsCost& c, const FrameTimes& t) {
+  std::cout << "; draw " << 1e3 * t.firstDraw << " ms, write " << 1e3 * t.write << " ms\n"
+            << "physics   " << c.steps << " steps, " << c.msPerStep() << " ms per step\n"
+            << "wall      " << t.wall << " s\n";
+}
+
+void printSequenceTimes(const PhysicsCost& c, const FrameTimes& t, const RenderCmdOptions& o, const RenderPlan& p) {
+  const long long frames = p.frames;
+  std::cout << ", " << o.fps << " fps\n"
+            << "per frame physics " << 1e3 * c.seconds / frames << " ms (" << c.steps << " steps, " << c.msPerStep()
+            << " ms each), draw ";
+  if (frames > 1) std::cout << 1e3 * t.draw / (frames - 1) << " ms (the first ";
+  std::cout << 1e3 * t.firstDraw << " ms" << (frames > 1 ? ", with shader compilation)" : "") << ", anti-aliasing "
+            << 1e3 * t.finish / frames << " ms, write " << 1e3 * t.write / frames << " ms\n"
+            << "          on three threads: physics ahead of the drawing, anti-aliasing and writing beside it; the drawing waited "
+            << 1e3 * t.waitPhysics / frames << " ms for physics and " << 1e3 * t.waitWriting / frames << " ms for the writing\n"
+            << "rate      " << frames << " frames in " << t.wall << " s: " << std::setprecision(1) << frames / t.wall
+            << " frames per second end to end (physics, drawing, "
+            << (p.kind == OutputKind::Video ? "encoding" : "PNG writing") << ")\n"
+            << std::setprecision(2);
+}
+
+void printReport(const RenderSession& session, const RenderCmdOptions& o, const RenderPlan& p, const FrameTimes& t) {
+  const PhysicsCost c = physicsCost(session);
+  std::cout << std::fixed << std::setprecision(2);
+  std::cout << "renderer  " << t.glInfo << "\n"
+            << "frames    " << p.frames << " at " << p.width << "x" << p.height;
+  if (p.kind == OutputKind::Png)
+    printStillTimes(c, t);
+  else
+    printSequenceTimes(c, t, o, p);
+  std::cout << "wrote     " << o.output << "\n";
+}
+
+int runRender(const RenderCmdOptions& o) {
+  const RenderPlan p = planRender(o);
+  RenderSession session = o.draw.makeSession(std::make_shared<const Scene>(load(o.draw.scene)), true);
+  o.draw.printHeader(session);
+  FrameTimes t;
+  const double wall0 = nowSeconds();
+  if (const int status = produceFrames(session, o, p, t)) return status;
+  t.wall = nowSeconds() - wall0;
+  if (!o.draw.quiet) printReport(session, o, p, t);
+  return 0;
+}
+
 }  // namespace
 
 void addRenderCommand(CLI::App& app, std::function<int()>& action) {
@@ -70,143 +259,7 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--encoder-preset", opt->encoderPreset, "x264 preset (default veryfast)")
       ->check(CLI::IsMember({"ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower"}));
 
-  cmd->callback([opt, &action] {
-    action = [opt]() -> int {
-      const RenderCmdOptions& o = *opt;
-      const RenderOptions& d = o.draw;
-      // Everything the user gave is checked before any work.
-      int width = 0, height = 0;
-      parseFrameSize(d.size, width, height);
-      const OutputKind kind = outputKind(o.output);
-      if (kind == OutputKind::Png && o.seconds)
-        throw UsageError("--seconds: a .png output is one frame; give its time with --at, or write .mp4 or a folder");
-      if (kind != OutputKind::Png && o.at)
-        throw UsageError("--at: only for a single .png frame; videos and sequences run from 0 for --seconds");
-      if (kind == OutputKind::Video && (width % 2 || height % 2))
-        throw UsageError("--size " + d.size + ": H.264 (yuv420p) needs an even width and height");
-      d.colourMode();
-      std::string ffmpeg;
-      if (kind == OutputKind::Video) {
-        ffmpeg = findFfmpeg();
-        if (ffmpeg.empty())
-          throw UsageError("-o " + o.output + ": writing MP4 needs the ffmpeg program, which is not " +
-                           (std::getenv("SUBSTEP_FFMPEG") ? std::string("at $SUBSTEP_FFMPEG") : "on PATH") +
-                           " (Debian: apt-get install ffmpeg), or write PNG frames to a folder instead");
-      }
-      RenderSession session = d.makeSession(std::make_shared<const Scene>(load(d.scene)), true);
-
-      const double seconds = o.seconds.value_or(10.0);
-      const long long frames = kind == OutputKind::Png ? 1 : std::max(1LL, std::llround(seconds * o.fps));
-      d.printHeader(session);
-
-      // Draw time apart from the first frame, which includes compiling the shaders.
-      double renderSeconds = 0, firstDrawSeconds = 0, finishSeconds = 0, writeSeconds = 0, waitPhysics = 0,
-             waitWriting = 0;
-      const double wall0 = nowSeconds();
-      std::string info;
-      {
-        InterruptGuard interrupts;
-        std::unique_ptr<FrameSink> sink;
-        try {
-          if (kind == OutputKind::Png) {
-            checkWritable(o.output, o.output);
-            sink = std::make_unique<PngSink>(o.output);
-          } else if (kind == OutputKind::Folder) {
-            checkWritable(PngFolderSink::stagingPath(o.output), "-o " + o.output);
-            sink = std::make_unique<PngFolderSink>(o.output);
-          } else {
-            checkWritable(o.output, "-o " + o.output);
-            VideoOptions vo;
-            vo.fps = o.fps;
-            vo.crf = o.crf;
-            vo.preset = o.encoderPreset;
-            sink = std::make_unique<VideoSink>(ffmpeg, o.output, width, height, vo);
-          }
-        } catch (const OutputError& e) {
-          throw UsageError(std::string("-o ") + e.what());
-        }
-        const std::unique_ptr<GlRenderer> renderer = d.makeRenderer(width, height);
-        info = renderer->glInfo();
-        if (kind == OutputKind::Png) {
-          // A single frame far into a run is mostly stepping: show progress over the steps then.
-          advanceShowingSteps(session, o.at.value_or(0.0), d.quiet);
-          if (const Panel* p = session.firstDiverged()) return reportDivergence("substep render", *p);
-          stopIfInterrupted();
-          Image img;
-          const double r0 = nowSeconds();
-          renderer->render(gridViews(session.drawLists(), width, height), img);
-          firstDrawSeconds = nowSeconds() - r0;
-          const double w0 = nowSeconds();
-          sink->write(img);
-          sink->commit();
-          writeSeconds = nowSeconds() - w0;
-        } else {
-          // Three threads: the physics steps ahead (render/ahead.h), this one draws, and the
-          // frames drawn are anti-aliased and written (piped to ffmpeg, or encoded as PNG) beside
-          // the drawing of the next.
-          ThreadedSink out(std::move(sink));
-          RawFrame raw;  // buffers go round between the threads: no page faults per frame
-          std::vector<double> times(static_cast<size_t>(frames));
-          for (long long k = 0; k < frames; ++k) times[static_cast<size_t>(k)] = static_cast<double>(k) / o.fps;
-          SessionAhead ahead(session, std::move(times));
-          Progress progress("render", frames);
-          for (long long k = 0; k < frames; ++k) {
-            stopIfInterrupted();
-            const SessionAhead::Frame f = ahead.next();
-            if (f.diverged) {
-              ahead.stop();
-              return reportDivergence("substep render", *session.firstDiverged());
-            }
-            const double r0 = nowSeconds();
-            renderer->draw(gridViews(f.lists, width, height), raw);
-            (k == 0 ? firstDrawSeconds : renderSeconds) += nowSeconds() - r0;
-            out.pass(raw);
-            if (!d.quiet) progress.update(k + 1);
-          }
-          if (!d.quiet) progress.finish();
-          ahead.stop();
-          out.commit();
-          writeSeconds = out.writeSeconds();
-          finishSeconds = out.finishSeconds();
-          waitPhysics = ahead.waitedSeconds();
-          waitWriting = out.waitedSeconds();
-        }
-      }
-      const double wall = nowSeconds() - wall0;
-
-      if (!d.quiet) {
-        long long steps = 0;
-        double physics = 0;
-        for (int i = 0; i < session.panelCount(); ++i)
-          steps += session.panel(i).steps(), physics += session.panel(i).physicsSeconds();
-        std::cout << std::fixed << std::setprecision(2);
-        std::cout << "renderer  " << info << "\n"
-                  << "frames    " << frames << " at " << width << "x" << height;
-        if (kind == OutputKind::Png) {
-          std::cout << "; draw " << 1e3 * firstDrawSeconds << " ms, write " << 1e3 * writeSeconds << " ms\n"
-                    << "physics   " << steps << " steps, " << (steps ? 1e3 * physics / steps : 0.0) << " ms per step\n"
-                    << "wall      " << wall << " s\n";
-        } else {
-          std::cout << ", " << o.fps << " fps\n"
-                    << "per frame physics " << 1e3 * physics / frames << " ms (" << steps << " steps, "
-                    << (steps ? 1e3 * physics / steps : 0.0) << " ms each), draw ";
-          if (frames > 1) std::cout << 1e3 * renderSeconds / (frames - 1) << " ms (the first ";
-          std::cout << 1e3 * firstDrawSeconds << " ms" << (frames > 1 ? ", with shader compilation)" : "")
-                    << ", anti-aliasing " << 1e3 * finishSeconds / frames << " ms, write " << 1e3 * writeSeconds / frames
-                    << " ms\n"
-                    << "          on three threads: physics ahead of the drawing, anti-aliasing and writing beside it; the drawing waited "
-                    << 1e3 * waitPhysics / frames << " ms for physics and " << 1e3 * waitWriting / frames
-                    << " ms for the writing\n"
-                    << "rate      " << frames << " frames in " << wall << " s: " << std::setprecision(1)
-                    << frames / wall << " frames per second end to end (physics, drawing, "
-                    << (kind == OutputKind::Video ? "encoding" : "PNG writing") << ")\n"
-                    << std::setprecision(2);
-        }
-        std::cout << "wrote     " << o.output << "\n";
-      }
-      return 0;
-    };
-  });
+  cmd->callback([opt, &action] { action = [opt] { return runRender(*opt); }; });
 }
 
 }  // namespace substep::app

@@ -80,42 +80,45 @@ int compareFiles(const SnapshotOptions& o) {
   return r.match ? 0 : kExitFailure;
 }
 
-int snapshot(const SnapshotOptions& o) {
-  if (!o.images.empty()) return compareFiles(o);
-  const RenderOptions& d = o.draw;
+// --- a scene's frames against its goldens -----------------------------------------------------
+
+void checkSceneOptions(const SnapshotOptions& o) {
   if (!o.diff.empty())
     throw UsageError("--diff: only with --compare A.png B.png; a scene's mismatches write NAME.diff.png themselves");
-  if (d.scene.empty())
+  if (o.draw.scene.empty())
     throw UsageError("expected a scene file (substep snapshot SCENE --at T --golden DIR) or --compare A.png B.png");
   if (o.at.empty()) throw UsageError("--at: give the simulated times of the frames to check, e.g. --at 0.5,1.0");
   if (o.golden.empty()) throw UsageError("--golden: give the folder of the golden images, e.g. --golden tests/goldens");
-  int width = 0, height = 0;
-  parseFrameSize(d.size, width, height);
-  d.colourMode();
+}
 
-  // The frames: golden names from the scene file's name and the time, in time order.
-  struct Frame {
-    double t;
-    std::string name;
-    fs::path golden;
-    Image expected, actual;
-  };
+struct GoldenFrame {
+  double t;
+  std::string name;
+  fs::path golden;
+  Image expected, actual;
+};
+
+// In time order, each once, named from the scene file's name and the time.
+std::vector<GoldenFrame> plannedFrames(const SnapshotOptions& o) {
   std::vector<double> times = o.at;
   std::sort(times.begin(), times.end());
-  std::vector<Frame> frames;
-  const std::string stem = fs::path(d.scene).stem().string();
+  std::vector<GoldenFrame> frames;
+  const std::string stem = fs::path(o.draw.scene).stem().string();
   for (double t : times) {
     const std::string name = stem + "@" + timeText(t);
     if (!frames.empty() && frames.back().name == name) continue;
     frames.push_back({t, name, fs::path(o.golden) / (name + ".png"), {}, {}});
   }
-  RenderSession session = d.makeSession(std::make_shared<const Scene>(load(d.scene)), o.stepCost);
-  const fs::path out = o.out.empty() ? fs::path(o.golden) : fs::path(o.out);
+  return frames;
+}
+
+// The goldens read (or, to update them, their folder checked), and the folder of mismatches checked.
+void checkGoldens(std::vector<GoldenFrame>& frames, const SnapshotOptions& o, const fs::path& out) {
   std::error_code ec;
   if (o.update) {
     checkWritable((fs::path(o.golden) / "x.png").string(), "--golden " + o.golden);
   } else {
-    for (Frame& f : frames) {
+    for (GoldenFrame& f : frames) {
       if (!fs::exists(f.golden, ec))
         throw UsageError(f.golden.string() + ": no golden image; to create it, run the same command with --update, "
                                              "then look at the image before committing it");
@@ -123,65 +126,89 @@ int snapshot(const SnapshotOptions& o) {
     }
   }
   if (!o.out.empty()) checkWritable((out / "x.png").string(), "--out " + o.out);
+}
 
-  d.printHeader(session);
-  {
-    InterruptGuard interrupts;
-    const std::unique_ptr<GlRenderer> renderer = d.makeRenderer(width, height);
-    for (Frame& f : frames) {
-      advanceShowingSteps(session, f.t, d.quiet);
-      if (const Panel* p = session.firstDiverged()) return reportDivergence("substep snapshot", *p);
-      session.frame(*renderer, f.actual);
-    }
+// 0, or the exit status of a diverged panel.
+int renderFrames(RenderSession& session, std::vector<GoldenFrame>& frames, const RenderOptions& d, int width, int height) {
+  InterruptGuard interrupts;
+  const std::unique_ptr<GlRenderer> renderer = d.makeRenderer(width, height);
+  for (GoldenFrame& f : frames) {
+    advanceShowingSteps(session, f.t, d.quiet);
+    if (const Panel* p = session.firstDiverged()) return reportDivergence("substep snapshot", *p);
+    session.frame(*renderer, f.actual);
   }
+  return 0;
+}
 
-  if (o.update) {
-    for (Frame& f : frames) {
-      std::string status = "created", note;
-      if (fs::exists(f.golden, ec)) {
-        Image old;
-        try {
-          old = readPng(f.golden.string());
-        } catch (const std::runtime_error&) {
-        }  // unreadable: rewritten
-        const CompareResult r = compareImages(old, f.actual, CompareOptions{0, 0.0});
-        status = r.sameSize && r.differing == 0 ? "unchanged" : "rewritten";
-        if (status == "rewritten") note = " (was: " + r.summary() + ")";
-      }
-      if (status != "unchanged") writePng(f.golden.string(), f.actual);
-      removeStale(out, f.name);
-      if (!d.quiet) std::cout << std::left << std::setw(10) << status << f.golden.string() << note << "\n";
-    }
-    return 0;
+void updateGolden(const GoldenFrame& f, const fs::path& out, bool quiet) {
+  std::error_code ec;
+  std::string status = "created", note;
+  if (fs::exists(f.golden, ec)) {
+    Image old;
+    try {
+      old = readPng(f.golden.string());
+    } catch (const std::runtime_error&) {
+    }  // unreadable: rewritten
+    const CompareResult r = compareImages(old, f.actual, CompareOptions{0, 0.0});
+    status = r.sameSize && r.differing == 0 ? "unchanged" : "rewritten";
+    if (status == "rewritten") note = " (was: " + r.summary() + ")";
   }
+  if (status != "unchanged") writePng(f.golden.string(), f.actual);
+  removeStale(out, f.name);
+  if (!quiet) std::cout << std::left << std::setw(10) << status << f.golden.string() << note << "\n";
+}
 
+// A mismatch: the actual frame and the diff written beside the golden (or under --out), and named.
+void reportMismatch(const GoldenFrame& f, const CompareResult& r, const CompareOptions& tol, const fs::path& out) {
+  const std::string actual = (out / (f.name + ".actual.png")).string(), diff = (out / (f.name + ".diff.png")).string();
+  writePng(actual, f.actual);
+  std::error_code ignored;
+  if (r.sameSize)
+    writePng(diff, r.diff);
+  else
+    fs::remove(diff, ignored);  // an older one would speak of another size
+  std::cout << "MISMATCH  " << f.name << ": " << r.summary() << " (" << tolerance(tol) << ")\n"
+            << "          golden " << f.golden.string() << "\n"
+            << "          actual " << actual << "\n";
+  if (r.sameSize) std::cout << "          diff   " << diff << " (differing pixels red over the golden, dimmed)\n";
+}
+
+int compareWithGoldens(const std::vector<GoldenFrame>& frames, const CompareOptions& tol, const fs::path& out, bool quiet) {
   int mismatches = 0;
-  for (Frame& f : frames) {
-    const CompareResult r = compareImages(f.expected, f.actual, o.tolerance);
+  for (const GoldenFrame& f : frames) {
+    const CompareResult r = compareImages(f.expected, f.actual, tol);
     if (r.match) {
       removeStale(out, f.name);
-      if (!d.quiet) std::cout << "match     " << f.name << ": " << r.summary() << "\n";
+      if (!quiet) std::cout << "match     " << f.name << ": " << r.summary() << "\n";
       continue;
     }
     ++mismatches;
-    const std::string actual = (out / (f.name + ".actual.png")).string(), diff = (out / (f.name + ".diff.png")).string();
-    writePng(actual, f.actual);
-    std::error_code ignored;
-    if (r.sameSize)
-      writePng(diff, r.diff);
-    else
-      fs::remove(diff, ignored);  // an older one would speak of another size
-    std::cout << "MISMATCH  " << f.name << ": " << r.summary() << " (" << tolerance(o.tolerance) << ")\n"
-              << "          golden " << f.golden.string() << "\n"
-              << "          actual " << actual << "\n";
-    if (r.sameSize) std::cout << "          diff   " << diff << " (differing pixels red over the golden, dimmed)\n";
+    reportMismatch(f, r, tol, out);
   }
   if (mismatches > 0)
     std::cout << mismatches << " of " << frames.size() << " frames differ from their goldens; if the change is intended, "
               << "run again with --update and look at the new goldens before committing them\n";
-  else if (!d.quiet)
+  else if (!quiet)
     std::cout << "all " << frames.size() << " frames match\n";
   return mismatches > 0 ? kExitFailure : 0;
+}
+
+int snapshot(const SnapshotOptions& o) {
+  if (!o.images.empty()) return compareFiles(o);
+  const RenderOptions& d = o.draw;
+  checkSceneOptions(o);
+  int width = 0, height = 0;
+  parseFrameSize(d.size, width, height);
+  d.colourMode();
+  std::vector<GoldenFrame> frames = plannedFrames(o);
+  RenderSession session = d.makeSession(std::make_shared<const Scene>(load(d.scene)), o.stepCost);
+  const fs::path out = o.out.empty() ? fs::path(o.golden) : fs::path(o.out);
+  checkGoldens(frames, o, out);
+  d.printHeader(session);
+  if (const int status = renderFrames(session, frames, d, width, height)) return status;
+  if (!o.update) return compareWithGoldens(frames, o.tolerance, out, d.quiet);
+  for (const GoldenFrame& f : frames) updateGolden(f, out, d.quiet);
+  return 0;
 }
 
 }  // namespace

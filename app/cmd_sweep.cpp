@@ -100,25 +100,33 @@ std::string shortFigure(const json& row) {
   return s;
 }
 
-int runSweep(const SweepOptions& o) {
-  lab::SweepSpec spec;
-  if (!o.spec.empty()) {
-    try {
-      spec = lab::readSweepSpec(o.spec);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
-    }
+// --- the plan: the spec, its flags and every scene checked before the first run ---------------
+
+lab::SweepSpec readSpec(const std::string& file) {
+  if (file.empty()) return {};
+  try {
+    return lab::readSweepSpec(file);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
   }
+}
+
+std::vector<double> parseSteps(const std::vector<std::string>& dts) {
+  std::vector<double> steps;
+  for (const std::string& d : dts) try {
+      steps.push_back(lab::parseStep(d));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError("--dt: " + std::string(e.what()));
+    }
+  return steps;
+}
+
+// The spec file's fields, each replaced by its flag when given.
+lab::SweepSpec sweepSpec(const SweepOptions& o) {
+  lab::SweepSpec spec = readSpec(o.spec);
   if (!o.scenes.empty()) spec.scenes = o.scenes;
   if (!o.methods.empty()) spec.methods = o.methods;
-  if (!o.dts.empty()) {
-    spec.dts.clear();
-    for (const std::string& d : o.dts) try {
-        spec.dts.push_back(lab::parseStep(d));
-      } catch (const std::invalid_argument& e) {
-        throw UsageError("--dt: " + std::string(e.what()));
-      }
-  }
+  if (!o.dts.empty()) spec.dts = parseSteps(o.dts);
   if (o.repeat) spec.repeat = *o.repeat;
   if (o.seconds) spec.seconds = o.seconds;
   if (spec.scenes.empty()) throw UsageError("no scenes: give SPEC.json or --scenes (e.g. --scenes chain,pyramid)");
@@ -128,15 +136,18 @@ int runSweep(const SweepOptions& o) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--methods: ") + e.what());
     }
-  const lab::Shard shard = [&] {
-    try {
-      return o.shard.empty() ? lab::Shard{} : lab::parseShard(o.shard);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError("--shard: " + std::string(e.what()));
-    }
-  }();
+  return spec;
+}
 
-  // Everything is loaded and checked before the first run: scenes, settings, references.
+lab::Shard shardOption(const std::string& text) {
+  try {
+    return text.empty() ? lab::Shard{} : lab::parseShard(text);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError("--shard: " + std::string(e.what()));
+  }
+}
+
+lab::SweepPlan planRuns(const lab::SweepSpec& spec) {
   std::vector<Scene> scenes;
   for (const std::string& name : spec.scenes) {
     try {
@@ -145,72 +156,109 @@ int runSweep(const SweepOptions& o) {
       throw UsageError(std::string(e.what()));
     }
   }
-  lab::SweepPlan plan;
   try {
-    plan = lab::planSweep(spec, std::move(scenes));
+    return lab::planSweep(spec, std::move(scenes));
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  std::vector<std::optional<lab::PreparedReference>> references(plan.scenes.size());
-  std::set<std::string> done = resume(o.output);
-  RowWriter writer(o.output);
+}
 
+// The shard's runs, and those of them not yet in the output.
+struct ShardRuns {
+  size_t mine = 0;
   std::vector<size_t> todo;
-  for (size_t k = 0; k < plan.runs.size(); ++k)
-    if (shard.has(static_cast<long long>(k)) && !done.count(plan.runs[k].key)) todo.push_back(k);
-  const size_t mine = [&] {
-    size_t n = 0;
-    for (size_t k = 0; k < plan.runs.size(); ++k) n += shard.has(static_cast<long long>(k));
-    return n;
-  }();
-  if (!o.quiet) {
-    size_t methods = 0;
-    for (const std::string& m : spec.methods) methods += lab::parseMethods(m).size();
-    const size_t steps = std::max<size_t>(1, spec.dts.size());
-    auto count = [](size_t n, const char* what) { return std::to_string(n) + " " + what + (n == 1 ? "" : "s"); };
-    std::cout << "sweep     " << count(plan.runs.size(), "run") << " (" << count(plan.scenes.size(), "scene") << " x "
-              << count(methods, "method") << " x " << count(steps, "time step") << "), plan " << plan.id;
-    if (shard.count > 1) std::cout << "; shard " << shard.index << "/" << shard.count << ": " << mine << " runs";
-    std::cout << "; " << (mine - todo.size()) << " already in " << o.output << ", " << todo.size() << " to run\n";
+};
+
+ShardRuns shardRuns(const lab::SweepPlan& plan, const lab::Shard& shard, const std::set<std::string>& done) {
+  ShardRuns s;
+  for (size_t k = 0; k < plan.runs.size(); ++k) {
+    if (!shard.has(static_cast<long long>(k))) continue;
+    ++s.mine;
+    if (!done.count(plan.runs[k].key)) s.todo.push_back(k);
   }
-  InterruptGuard interrupt;
-  Progress progress("sweep", static_cast<long long>(todo.size()), !o.quiet);
+  return s;
+}
+
+void printSweepHeader(const SweepOptions& o, const lab::SweepSpec& spec, const lab::SweepPlan& plan, const lab::Shard& shard,
+                      const ShardRuns& runs) {
+  size_t methods = 0;
+  for (const std::string& m : spec.methods) methods += lab::parseMethods(m).size();
+  const size_t steps = std::max<size_t>(1, spec.dts.size());
+  auto count = [](size_t n, const char* what) { return std::to_string(n) + " " + what + (n == 1 ? "" : "s"); };
+  std::cout << "sweep     " << count(plan.runs.size(), "run") << " (" << count(plan.scenes.size(), "scene") << " x "
+            << count(methods, "method") << " x " << count(steps, "time step") << "), plan " << plan.id;
+  if (shard.count > 1) std::cout << "; shard " << shard.index << "/" << shard.count << ": " << runs.mine << " runs";
+  std::cout << "; " << (runs.mine - runs.todo.size()) << " already in " << o.output << ", " << runs.todo.size() << " to run\n";
+}
+
+// --- the runs ---------------------------------------------------------------------------------
+
+// A scene's reference, prepared when a run first needs it: a resumed sweep with nothing left on the scene skips it.
+const lab::PreparedReference* referenceFor(const Scene& scene, double seconds, std::optional<lab::PreparedReference>& ref) {
+  if (!ref && scene.criteria && scene.criteria->reference) {
+    try {
+      ref = lab::prepareReference(scene, *scene.criteria->reference, seconds);
+    } catch (const std::exception& e) {  // a converged run that is not, a pendulum that cannot swing
+      throw UsageError(scene.file + ": criteria.reference: " + e.what());
+    }
+  }
+  return ref ? &*ref : nullptr;
+}
+
+lab::RunResult runPlanned(const lab::PlannedRun& run, const Scene& scene, int repeat, const lab::PreparedReference* reference) {
+  lab::RunSetup setup;
+  setup.seconds = run.seconds;
+  setup.repeat = repeat;
+  setup.dt = run.dt;
+  setup.reference = reference;
+  setup.stop = [](const lab::Metrics&, double) { return InterruptGuard::interrupted() ? std::string("interrupted") : ""; };
+  return lab::runMethod(scene, run.method, setup);
+}
+
+void printRow(long long n, size_t total, const Scene& scene, const lab::PlannedRun& run, const lab::RunResult& result,
+              const json& row) {
+  char cost[64];
+  std::snprintf(cost, sizeof cost, "%.4g ms/step", result.cost.msPerStep);
+  std::cout << "[" << n << "/" << total << "] " << lab::sceneName(scene) << "  " << run.method.text << "  h="
+            << stepText(result.settings.dt) << ": " << (result.refused ? "-" : cost) << ", " << shortFigure(row) << "\n"
+            << std::flush;
+}
+
+// Runs `todo`, a row each written as it ends; returns how many.
+long long runAll(const lab::SweepPlan& plan, const std::vector<size_t>& todo, int repeat, RowWriter& writer, bool quiet) {
+  std::vector<std::optional<lab::PreparedReference>> references(plan.scenes.size());
+  Progress progress("sweep", static_cast<long long>(todo.size()), !quiet);
   long long n = 0;
   for (size_t k : todo) {
     if (InterruptGuard::interrupted()) throw Interrupted();
     const lab::PlannedRun& run = plan.runs[k];
     const Scene& scene = plan.scenes[run.scene];
-    std::optional<lab::PreparedReference>& ref = references[run.scene];
-    if (!ref && scene.criteria && scene.criteria->reference) {
-      try {
-        ref = lab::prepareReference(scene, *scene.criteria->reference, run.seconds);
-      } catch (const std::exception& e) {  // a converged run that is not, a pendulum that cannot swing
-        throw UsageError(scene.file + ": criteria.reference: " + e.what());
-      }
-    }
-    lab::RunSetup setup;
-    setup.seconds = run.seconds;
-    setup.repeat = spec.repeat;
-    setup.dt = run.dt;
-    setup.reference = ref ? &*ref : nullptr;
-    setup.stop = [](const lab::Metrics&, double) { return InterruptGuard::interrupted() ? std::string("interrupted") : ""; };
-    const lab::RunResult result = lab::runMethod(scene, run.method, setup);
+    const lab::RunResult result = runPlanned(run, scene, repeat, referenceFor(scene, run.seconds, references[run.scene]));
     if (InterruptGuard::interrupted()) throw Interrupted();  // the run was cut: no row for it
-    const json row = lab::recordJson(scene, result, run.seconds, spec.repeat,
+    const json row = lab::recordJson(scene, result, run.seconds, repeat,
                                      lab::SweepPlace{plan.id, static_cast<long long>(k), static_cast<long long>(plan.runs.size())});
     writer.write(row);
     ++n;
-    if (!o.quiet) {
+    if (!quiet) {
       progress.clear();
-      char cost[64];
-      std::snprintf(cost, sizeof cost, "%.4g ms/step", result.cost.msPerStep);
-      std::cout << "[" << n << "/" << todo.size() << "] " << lab::sceneName(scene) << "  " << run.method.text << "  h="
-                << stepText(result.settings.dt) << ": " << (result.refused ? "-" : cost) << ", " << shortFigure(row)
-                << "\n" << std::flush;
+      printRow(n, todo.size(), scene, run, result, row);
     }
     progress.update(n);
   }
   progress.finish();
+  return n;
+}
+
+int runSweep(const SweepOptions& o) {
+  const lab::SweepSpec spec = sweepSpec(o);
+  const lab::Shard shard = shardOption(o.shard);
+  const lab::SweepPlan plan = planRuns(spec);
+  const std::set<std::string> done = resume(o.output);
+  RowWriter writer(o.output);
+  const ShardRuns runs = shardRuns(plan, shard, done);
+  if (!o.quiet) printSweepHeader(o, spec, plan, shard, runs);
+  InterruptGuard interrupt;
+  const long long n = runAll(plan, runs.todo, spec.repeat, writer, o.quiet);
   if (!o.quiet) std::cout << "wrote     " << o.output << " (" << n << " new rows)\n";
   return 0;
 }

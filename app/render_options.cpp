@@ -85,25 +85,33 @@ ColourMode RenderOptions::colourMode() const {
   return *c;
 }
 
-RenderSession RenderOptions::makeSession(std::shared_ptr<const Scene> scene, bool stepCost) const {
-  CameraOptions camOpts;
-  camOpts.preset = camera;
-  camOpts.yaw = yaw;
-  camOpts.pitch = pitch;
-  camOpts.distance = distance;
-  camOpts.fov = fov;
-  if (!target.empty()) camOpts.target = Vec3(target[0], target[1], target[2]);
-  camOpts.follow = follow;
+namespace {
+
+CameraOptions cameraOptions(const RenderOptions& o) {
+  CameraOptions c;
+  c.preset = o.camera;
+  c.yaw = o.yaw;
+  c.pitch = o.pitch;
+  c.distance = o.distance;
+  c.fov = o.fov;
+  if (!o.target.empty()) c.target = Vec3(o.target[0], o.target[1], o.target[2]);
+  c.follow = o.follow;
+  return c;
+}
+
+}  // namespace
+
+Look RenderOptions::look(const Scene& scene, bool stepCost) const {
   Look look;
   try {
-    look.camera = chooseCamera(*scene, camOpts);
+    look.camera = chooseCamera(scene, cameraOptions(*this));
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
   look.orbit = orbit;
   look.stepCost = stepCost;
   for (const std::string& name : highlight)
-    if (scene->model.bodyIndex(name) < 0) throw UsageError("--highlight: " + scene->file + " has no body \"" + name + "\"");
+    if (scene.model.bodyIndex(name) < 0) throw UsageError("--highlight: " + scene.file + " has no body \"" + name + "\"");
   look.view.colour = colourMode();
   look.view.contacts = contacts;
   look.view.joints = joints;
@@ -111,31 +119,36 @@ RenderSession RenderOptions::makeSession(std::shared_ptr<const Scene> scene, boo
   look.view.highlight = highlight;
   look.view.speedScale = speedScale;
   look.view.errorScale = errorScale;
+  return look;
+}
 
-  // The panels: one, or one per --compare setting over the shared command-line settings.
+std::vector<PanelSetup> RenderOptions::panelSetups(const Scene& scene) const {
   const SolverOverrides common = solver.overrides();
-  std::vector<PanelSetup> setups;
   if (panels.empty() && panelsOption_ && panelsOption_->count() > 0)
     throw UsageError(panelsOption_->get_name() + ": expected 2 to 4 settings, e.g. a2:m=4,a5:n=4, got nothing");
-  if (panels.empty()) {
-    setups.push_back({resolveSettings(*scene, common), ""});
-  } else {
-    std::vector<CompareSpec> specs;
+  if (panels.empty()) return {{resolveSettings(scene, common), ""}};
+  std::vector<CompareSpec> specs;
+  try {
+    specs = parseCompareSpecs(panels);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  std::vector<PanelSetup> setups;
+  for (const CompareSpec& s : specs) {
     try {
-      specs = parseCompareSpecs(panels);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
-    }
-    for (const CompareSpec& s : specs) {
-      try {
-        setups.push_back({resolveSettings(*scene, common.merged(s.overrides)), s.text});
-      } catch (const UsageError& e) {
-        throw UsageError("--compare \"" + s.text + "\": " + e.what());
-      }
+      setups.push_back({resolveSettings(scene, common.merged(s.overrides)), s.text});
+    } catch (const UsageError& e) {
+      throw UsageError("--compare \"" + s.text + "\": " + e.what());
     }
   }
+  return setups;
+}
+
+RenderSession RenderOptions::makeSession(std::shared_ptr<const Scene> scene, bool stepCost) const {
+  const Look l = look(*scene, stepCost);
+  const std::vector<PanelSetup> setups = panelSetups(*scene);
   try {
-    return RenderSession(std::move(scene), setups, look);
+    return RenderSession(std::move(scene), setups, l);
   } catch (const PanelError& e) {
     const std::string& name = setups[static_cast<size_t>(e.panel)].name;
     throw UsageError((name.empty() ? std::string() : "--compare \"" + name + "\": ") + e.what());

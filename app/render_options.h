@@ -38,6 +38,8 @@ struct RenderOptions {
   // The session of the scene: the panels (one, or one per --compare setting over the shared
   // solver options), the camera, what is drawn; `stepCost` puts the measured step cost in the HUD.
   render::RenderSession makeSession(std::shared_ptr<const Scene> scene, bool stepCost) const;
+  render::Look look(const Scene& scene, bool stepCost) const;           // the camera and what is drawn
+  std::vector<render::PanelSetup> panelSetups(const Scene& scene) const;  // a panel's settings each
   std::unique_ptr<render::GlRenderer> makeRenderer(int width, int height) const;
 
   // "scene ..." and one "solver ..." line per panel, unless --quiet.

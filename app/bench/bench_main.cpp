@@ -328,7 +328,7 @@ std::vector<Comparison> compare(const std::vector<Result>& results) {
   return list;
 }
 
-void printTables(const std::vector<Result>& results, int steps, std::ostream& out) {
+void printTimeTable(const std::vector<Result>& results, std::ostream& out) {
   char line[512];
   out << "Time per step (median run of the repeats; spread = (slowest - fastest) / median of the repeats):\n";
   std::snprintf(line, sizeof line, "%-12s %-15s %7s %7s %7s %7s %9s %7s %9s\n", "scene", "algo", "s1", "s2", "s3",
@@ -347,7 +347,10 @@ void printTables(const std::vector<Result>& results, int steps, std::ostream& ou
                   stage(m.stages.s4).c_str(), m.total * 1e3, 100 * spread(r), vs.c_str());
     out << line;
   }
+}
 
+void printEndTable(const std::vector<Result>& results, int steps, std::ostream& out) {
+  char line[512];
   out << "\nWhat it bought, at the end of the run (" << steps << " steps) unless said:\n";
   std::snprintf(line, sizeof line, "%-12s %-15s %8s %9s %9s %8s %8s %8s  %s\n", "scene", "algo", "contacts",
                 "moved 1s", "moved", "max v", "joint", "limit", "moved most");
@@ -370,9 +373,10 @@ void printTables(const std::vector<Result>& results, int steps, std::ostream& ou
                   r.repeatable ? "" : "  (differs between repeats)");
     out << line;
   }
+}
 
-  const std::vector<Comparison> comps = compare(results);
-  if (comps.empty()) return;
+void printComparisons(const std::vector<Comparison>& comps, std::ostream& out) {
+  char line[512];
   out << "\nA5 (n=4 m=1) against A3 and A4 (same n, m), A2 at equal solver work (m=4) and Bullet: ratio of the\n"
          "median totals (in brackets the range of the repeats' pairwise ratios); saving = 1 - a5/a3:\n";
   std::snprintf(line, sizeof line, "%-12s %9s %20s %7s %8s %20s %20s %20s\n", "scene", "a5 ms", "a5/a3", "saving",
@@ -386,6 +390,9 @@ void printTables(const std::vector<Result>& results, int steps, std::ostream& ou
                   ratioText(c.a5a4).c_str(), ratioText(c.a5a2m4).c_str(), ratioText(c.a5bullet).c_str());
     out << line;
   }
+}
+
+void printGoal(const std::vector<Comparison>& comps, std::ostream& out) {
   for (const Comparison& c : comps) {
     if (c.scene != kGoalScene || !c.goalBullet.valid()) continue;
     const bool met = c.goalBullet.median <= kGoalVsBullet;
@@ -399,6 +406,15 @@ void printTables(const std::vector<Result>& results, int steps, std::ostream& ou
           << fmt("%.1fx", c.goal->median.total / needed) << " faster than now";
     out << ")\n";
   }
+}
+
+void printTables(const std::vector<Result>& results, int steps, std::ostream& out) {
+  printTimeTable(results, out);
+  printEndTable(results, steps, out);
+  const std::vector<Comparison> comps = compare(results);
+  if (comps.empty()) return;
+  printComparisons(comps, out);
+  printGoal(comps, out);
 }
 
 nlohmann::json ratioJson(const Ratio& q) {
@@ -526,6 +542,54 @@ ScalingRun scalingRunInChild(const Case& c, int boxes, int steps) {
 
 constexpr double kScalingGoal = 1.1;
 
+// A pile size's figure: the run with the median step time, and the largest peak memory of any run.
+struct ScalingPoint {
+  ScalingRun median;
+  long peakKiB = 0;
+};
+
+ScalingPoint scalingPoint(const Case& c, int boxes, int steps, int repeat) {
+  std::vector<ScalingRun> runs;
+  for (int k = 0; k < repeat; ++k) runs.push_back(scalingRunInChild(c, boxes, steps));
+  std::sort(runs.begin(), runs.end(), [](const ScalingRun& a, const ScalingRun& b) { return a.step < b.step; });
+  ScalingPoint p{runs[runs.size() / 2]};
+  for (const ScalingRun& r : runs) p.peakKiB = std::max(p.peakKiB, r.peakKiB);
+  return p;
+}
+
+// A case over the pile sizes: a row each, then the slope and the memory per box; returns its JSON.
+nlohmann::json scalingCase(const Case& c, const std::vector<int>& sizes, int steps, int repeat, bool& allFinite) {
+  std::vector<std::pair<double, double>> timeByBoxes;  // (boxes, step time)
+  std::vector<long> peaks;
+  nlohmann::json rows = nlohmann::json::array();
+  for (int boxes : sizes) {
+    const ScalingPoint p = scalingPoint(c, boxes, steps, repeat);
+    const ScalingRun& m = p.median;
+    allFinite = allFinite && m.finite;
+    timeByBoxes.emplace_back(boxes, m.step);
+    peaks.push_back(p.peakKiB);
+    std::printf("%-16s %7d %11.3f %9d %10.1f %12.2f%s\n", c.label, boxes, m.step * 1e3, m.contacts, p.peakKiB / 1024.0,
+                m.step / boxes * 1e6, m.finite ? "" : "  NOT FINITE");
+    std::fflush(stdout);
+    rows.push_back({{"boxes", boxes}, {"step_ms", m.step * 1e3}, {"contact_points", m.contacts},
+                    {"peak_rss_kib", p.peakKiB}, {"finite", m.finite}});
+  }
+  const double slope = lab::logSlope(timeByBoxes);  // NaN for fewer than two sizes
+  nlohmann::json entry = {{"case", c.id}, {"label", c.label}, {"sizes", rows}, {"slope", slope}};
+  std::printf("%-16s slope of log step time against log boxes: %.3f (goal at most %.1f: %s)\n", c.label, slope,
+              kScalingGoal, slope <= kScalingGoal ? "MET" : "NOT MET");
+  if (timeByBoxes.size() > 1) {
+    const double first = timeByBoxes.front().first, last = timeByBoxes.back().first;
+    const double perBody = (peaks.back() - peaks.front()) * 1024.0 / (last - first);
+    std::printf("%-16s peak resident memory %.1f MiB at %d boxes; %.2f KiB a box (from %d to %d boxes)\n", c.label,
+                peaks.back() / 1024.0, static_cast<int>(last), perBody / 1024.0, static_cast<int>(first),
+                static_cast<int>(last));
+    entry["bytes_per_box"] = perBody;
+  }
+  std::printf("\n");
+  return entry;
+}
+
 int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes, int steps, int repeat,
             const std::string& json) {
   if (!json.empty()) checkJsonPath(json);
@@ -536,41 +600,7 @@ int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes
   std::printf("%-16s %7s %11s %9s %10s %12s\n", "case", "boxes", "step [ms]", "contacts", "peak [MiB]", "per box [us]");
   nlohmann::json list = nlohmann::json::array();
   bool allFinite = true;
-  for (const Case* c : cases) {
-    std::vector<std::pair<double, double>> timeByBoxes;  // (boxes, step time)
-    std::vector<long> peaks;
-    nlohmann::json rows = nlohmann::json::array();
-    for (int boxes : sizes) {
-      std::vector<ScalingRun> runs;
-      for (int k = 0; k < repeat; ++k) runs.push_back(scalingRunInChild(*c, boxes, steps));
-      std::sort(runs.begin(), runs.end(), [](const ScalingRun& a, const ScalingRun& b) { return a.step < b.step; });
-      const ScalingRun& m = runs[runs.size() / 2];
-      long peak = 0;
-      for (const ScalingRun& r : runs) peak = std::max(peak, r.peakKiB);
-      allFinite = allFinite && m.finite;
-      timeByBoxes.emplace_back(boxes, m.step);
-      peaks.push_back(peak);
-      std::printf("%-16s %7d %11.3f %9d %10.1f %12.2f%s\n", c->label, boxes, m.step * 1e3, m.contacts, peak / 1024.0,
-                  m.step / boxes * 1e6, m.finite ? "" : "  NOT FINITE");
-      std::fflush(stdout);
-      rows.push_back({{"boxes", boxes}, {"step_ms", m.step * 1e3}, {"contact_points", m.contacts},
-                      {"peak_rss_kib", peak}, {"finite", m.finite}});
-    }
-    const double slope = lab::logSlope(timeByBoxes);  // NaN for fewer than two sizes
-    nlohmann::json entry = {{"case", c->id}, {"label", c->label}, {"sizes", rows}, {"slope", slope}};
-    std::printf("%-16s slope of log step time against log boxes: %.3f (goal at most %.1f: %s)\n", c->label, slope,
-                kScalingGoal, slope <= kScalingGoal ? "MET" : "NOT MET");
-    if (timeByBoxes.size() > 1) {
-      const double first = timeByBoxes.front().first, last = timeByBoxes.back().first;
-      const double perBody = (peaks.back() - peaks.front()) * 1024.0 / (last - first);
-      std::printf("%-16s peak resident memory %.1f MiB at %d boxes; %.2f KiB a box (from %d to %d boxes)\n",
-                  c->label, peaks.back() / 1024.0, static_cast<int>(last), perBody / 1024.0, static_cast<int>(first),
-                  static_cast<int>(last));
-      entry["bytes_per_box"] = perBody;
-    }
-    std::printf("\n");
-    list.push_back(entry);
-  }
+  for (const Case* c : cases) list.push_back(scalingCase(*c, sizes, steps, repeat, allFinite));
   if (!json.empty()) {
     nlohmann::json doc = {{"tool", "substep-bench --scaling"}, {"date_utc", utcNow()}, {"cpu", cpuModel()},
                           {"build_type", SUBSTEP_BUILD_TYPE}, {"source", sourceState()}, {"steps", steps},
@@ -581,7 +611,7 @@ int scaling(const std::vector<const Case*>& cases, const std::vector<int>& sizes
   return allFinite ? 0 : kExitNonFinite;
 }
 
-// --- main -------------------------------------------------------------------------------------
+// --- the options ------------------------------------------------------------------------------
 
 struct Options {
   int steps = 300;
@@ -595,70 +625,98 @@ struct Options {
   std::string command;  // the command line, for the JSON
 };
 
-int bench(const Options& opt) {
-  std::vector<const Case*> cases;
-  if (opt.algos.empty()) {
-    for (const Case& c : allCases())
-      if (opt.scaling ? std::string(c.id) == "a5-stack" || std::string(c.id) == "bullet" : c.byDefault)
-        cases.push_back(&c);
-  } else {
-    for (const std::string& id : opt.algos) {
-      const auto it = std::find_if(allCases().begin(), allCases().end(), [&](const Case& c) { return id == c.id; });
-      if (it == allCases().end()) {
-        std::string known;
-        for (const Case& c : allCases()) known += std::string(known.empty() ? "" : ", ") + c.id;
-        throw UsageError("--algos: unknown case \"" + id + "\"; known: " + known);
-      }
-      if (std::find(cases.begin(), cases.end(), &*it) == cases.end()) cases.push_back(&*it);
-    }
-  }
+// --- planning ---------------------------------------------------------------------------------
 
-  if (opt.scaling) return scaling(cases, opt.sizes, opt.steps, opt.repeat, opt.json);
-  if (!opt.json.empty()) checkJsonPath(opt.json);
-  // Load every scene and check every case can be built, before anything is timed.
+const Case& knownCase(const std::string& id) {
+  const auto it = std::find_if(allCases().begin(), allCases().end(), [&](const Case& c) { return id == c.id; });
+  if (it == allCases().end()) {
+    std::string known;
+    for (const Case& c : allCases()) known += std::string(known.empty() ? "" : ", ") + c.id;
+    throw UsageError("--algos: unknown case \"" + id + "\"; known: " + known);
+  }
+  return *it;
+}
+
+// --algos in the order given, each once; else the default cases (a5-stack and bullet for --scaling).
+std::vector<const Case*> chooseCases(const std::vector<std::string>& algos, bool scaling) {
+  std::vector<const Case*> cases;
+  if (algos.empty()) {
+    for (const Case& c : allCases())
+      if (scaling ? std::string(c.id) == "a5-stack" || std::string(c.id) == "bullet" : c.byDefault) cases.push_back(&c);
+    return cases;
+  }
+  for (const std::string& id : algos) {
+    const Case* c = &knownCase(id);
+    if (std::find(cases.begin(), cases.end(), c) == cases.end()) cases.push_back(c);
+  }
+  return cases;
+}
+
+struct BenchPlan {
   std::vector<Scene> scenes;
-  std::vector<std::string> names;
-  std::vector<Result> results;
+  std::vector<Result> results;       // a scene's cases together, in table order
   std::vector<std::string> skipped;  // scenes without a Bullet peer, and why
-  scenes.reserve(opt.scenes.size());  // results point at their scene's model
-  for (const std::string& name : opt.scenes) {
+};
+
+// A case on a scene, checked before anything is timed: its World can be built, or Bullet has a
+// peer for the scene (else it is skipped there, and said so).
+std::optional<Result> planCase(const Scene& scene, size_t index, const std::string& name, const Case* c,
+                               std::vector<std::string>& skipped) {
+  const double dt = scene.solver.get(&SolverSettings::dt).value_or(1.0 / 60.0);
+  Result r;
+  r.scene = name;
+  r.sceneIndex = index;
+  r.model = &scene.model;
+  r.c = c;
+  if (c->engine() == EngineKind::Substep) {
+    try {
+      r.settings = c->settings(dt);
+      World probe(scene.model, r.settings, scene.initial);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("case ") + c->id + " on " + name + ": " + e.what());
+    }
+    return r;
+  }
+  const std::string why = bulletUnsupported(scene.model);
+  if (!why.empty()) {
+    std::cout << "substep-bench: no Bullet peer for " << name << ", Bullet skipped there: " << why << "\n";
+    skipped.push_back(name + ": " + why);
+    return std::nullopt;
+  }
+  r.settings.dt = dt;
+  r.settings.iterations = c->settings(dt).iterations;
+  return r;
+}
+
+BenchPlan planBench(const std::vector<std::string>& sceneNames, const std::vector<const Case*>& cases) {
+  BenchPlan plan;
+  std::vector<std::string> names;
+  plan.scenes.reserve(sceneNames.size());  // results point at their scene's model
+  for (const std::string& name : sceneNames) {
     const std::string path = app::scenePath(name);
     try {
-      scenes.push_back(loadScene(path));
+      plan.scenes.push_back(loadScene(path));
     } catch (const SceneError& e) {
       throw UsageError(std::string("--scenes: ") + e.what());
     }
     names.push_back(std::filesystem::path(path).stem().string());
   }
-  for (size_t s = 0; s < scenes.size(); ++s) {
-    const double dt = scenes[s].solver.get(&SolverSettings::dt).value_or(1.0 / 60.0);
-    for (const Case* c : cases) {
-      Result r;
-      r.scene = names[s];
-      r.sceneIndex = s;
-      r.model = &scenes[s].model;
-      r.c = c;
-      if (c->engine() == EngineKind::Substep) {
-        try {
-          r.settings = c->settings(dt);
-          World probe(scenes[s].model, r.settings, scenes[s].initial);
-        } catch (const std::invalid_argument& e) {
-          throw UsageError(std::string("case ") + c->id + " on " + names[s] + ": " + e.what());
-        }
-      } else {
-        const std::string why = bulletUnsupported(scenes[s].model);
-        if (!why.empty()) {
-          std::cout << "substep-bench: no Bullet peer for " << names[s] << ", Bullet skipped there: " << why << "\n";
-          skipped.push_back(names[s] + ": " + why);
-          continue;
-        }
-        r.settings.dt = dt;
-        r.settings.iterations = c->settings(dt).iterations;
-      }
-      results.push_back(std::move(r));
-    }
-  }
+  for (size_t s = 0; s < plan.scenes.size(); ++s)
+    for (const Case* c : cases)
+      if (std::optional<Result> r = planCase(plan.scenes[s], s, names[s], c, plan.skipped)) plan.results.push_back(std::move(*r));
+  return plan;
+}
 
+// --- timing -----------------------------------------------------------------------------------
+
+// Where and how the timed runs ran, for the notes and the JSON.
+struct TimedRuns {
+  std::string source, loadBefore, loadAfter;
+  double wall = 0;  // [s]
+};
+
+// Returns the source state, as git sees the tree now.
+std::string printHeader(const Options& opt, const std::vector<Result>& results) {
   std::cout << "substep-bench  " << utcNow() << "  " << cpuModel() << ", " << std::thread::hardware_concurrency()
             << " hardware threads, single-threaded runs; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
             << bulletVersion() << "; load average " << loadAverage() << "\n";
@@ -668,56 +726,71 @@ int bench(const Options& opt) {
             << " s each, every step timed (no warm-up excluded); median of " << opt.repeat
             << " repeats, each on a freshly built world\n\n";
   std::cout.flush();
+  return source;
+}
 
-  const std::string loadBefore = loadAverage();
-  const auto started = Clock::now();
-  std::vector<double> stepTimes(static_cast<size_t>(opt.steps));
-  const int totalRuns = opt.repeat * static_cast<int>(results.size());
+// Repeat k of every case before repeat k + 1 of any, so that slow drift of the machine spreads over all cases.
+void timeRepeats(BenchPlan& plan, int steps, int repeat) {
+  std::vector<double> stepTimes(static_cast<size_t>(steps));
+  const int totalRuns = repeat * static_cast<int>(plan.results.size());
   int done = 0;
-  for (int rep = 0; rep < opt.repeat; ++rep) {
-    for (Result& r : results) {
-      const Scene& scene = scenes[r.sceneIndex];
-      Run run = runCase(scene, *r.c, r.settings, opt.steps, stepTimes);
+  for (int rep = 0; rep < repeat; ++rep) {
+    for (Result& r : plan.results) {
+      Run run = runCase(plan.scenes[r.sceneIndex], *r.c, r.settings, steps, stepTimes);
       ++done;
       std::fprintf(stderr, "[%d/%d] %-8s %-15s repeat %d/%d: %.3f ms/step\n", done, totalRuns, r.scene.c_str(),
-                   r.c->label, rep + 1, opt.repeat, run.total * 1e3);
+                   r.c->label, rep + 1, repeat, run.total * 1e3);
       r.runs.push_back(run);
     }
   }
+}
 
+// --- aggregating ------------------------------------------------------------------------------
+
+// The repeats ended alike, so they timed the same work.
+bool sameEnd(const Run& a, const Run& b) {
+  return a.contacts == b.contacts && a.moved == b.moved && a.finite == b.finite && a.maxSpeed == b.maxSpeed &&
+         a.jointError == b.jointError && a.stepsDone == b.stepsDone;
+}
+
+// Each case's median run, whether its repeats ended alike, and its ratio to Bullet on its scene.
+// Returns whether every run stayed finite.
+bool aggregate(std::vector<Result>& results) {
   bool allFinite = true;
   for (Result& r : results) {
     r.median = medianRun(r.runs);
     for (const Run& run : r.runs) {
-      const Run& first = r.runs[0];
-      if (run.contacts != first.contacts || run.moved != first.moved || run.finite != first.finite ||
-          run.maxSpeed != first.maxSpeed || run.jointError != first.jointError || run.stepsDone != first.stepsDone)
-        r.repeatable = false;
+      r.repeatable = r.repeatable && sameEnd(run, r.runs[0]);
       allFinite = allFinite && run.finite;
     }
   }
-  for (Result& r : results) {
+  for (Result& r : results)
     for (const Result& b : results)
       if (b.scene == r.scene && b.c->engine() == EngineKind::Bullet && b.median.total > 0)
         r.ratio = r.median.total / b.median.total;
-  }
+  return allFinite;
+}
 
-  const double wall = since(started);
-  const std::string loadAfter = loadAverage();
-  std::cout << "\n";
-  printTables(results, opt.steps, std::cout);
+bool allRepeatable(const std::vector<Result>& results) {
+  return std::all_of(results.begin(), results.end(), [](const Result& r) { return r.repeatable; });
+}
+
+// --- printing ---------------------------------------------------------------------------------
+
+void printNotes(const BenchPlan& plan, const TimedRuns& t) {
   std::cout << "\ns1 geometry, s2 formulation, s3 velocities, s4 coordinates: mean per step of the median run; total:\n"
                "wall time of one step() call (includes bookkeeping outside s1-s4). vs Bullet: total / Bullet's total\n"
                "on the same scene. contacts: contact points at the last step. moved: largest distance of any body's\n"
                "centre from where it started (after 1 s, and at the end; dropped scenes: mostly the fall). max v:\n"
                "fastest body. joint err: largest anchor separation; limit over: largest angle beyond a hinge, swing\n"
                "or twist limit; both by our definitions, for Bullet too.\n";
-  for (const std::string& s : skipped) std::cout << "No Bullet peer for " << s << "\n";
-  std::cout << "Timed runs took " << fmt("%.1f", wall) << " s; load average before " << loadBefore << ", after "
-            << loadAfter << ".\n";
-  bool allRepeatable = true;
-  for (const Result& r : results) allRepeatable = allRepeatable && r.repeatable;
-  if (!allRepeatable) {
+  for (const std::string& s : plan.skipped) std::cout << "No Bullet peer for " << s << "\n";
+  std::cout << "Timed runs took " << fmt("%.1f", t.wall) << " s; load average before " << t.loadBefore << ", after "
+            << t.loadAfter << ".\n";
+}
+
+void printWarnings(const std::vector<Result>& results, bool allFinite) {
+  if (!allRepeatable(results)) {
     std::cout << "WARNING: some cases ended differently between repeats (contacts, displacement, speed or joint\n"
                  "error differ), so their repeats did not time the same work:\n";
     for (const Result& r : results)
@@ -728,71 +801,97 @@ int bench(const Options& opt) {
     for (const Result& r : results)
       if (!r.median.finite) std::cout << "  " << r.scene << " " << r.c->label << ": " << r.median.problem << "\n";
   }
+}
 
+// --- the JSON ---------------------------------------------------------------------------------
+
+nlohmann::json resultJson(const Result& r) {
+  nlohmann::json j = runJson(r.median, *r.model);
+  j["scene"] = r.scene;
+  j["case"] = r.c->id;
+  j["label"] = r.c->label;
+  j["engine"] = r.c->engine() == EngineKind::Substep ? "substep" : "bullet";
+  j["method"] = r.c->spec;
+  if (r.c->engine() == EngineKind::Substep) {
+    j["settings"] = settingsJson(r.settings);
+    j["solver_last_step"] = {{"iterations", r.median.solverIterations}, {"rows", r.median.rows}};
+  } else {
+    j["settings"] = {{"dt", r.settings.dt}, {"iterations", r.settings.iterations}, {"sleeping", false}};
+  }
+  j["vs_bullet"] = std::isnan(r.ratio) ? nlohmann::json(nullptr) : nlohmann::json(r.ratio);
+  j["spread"] = spread(r);
+  j["repeatable"] = r.repeatable;
+  nlohmann::json reps = nlohmann::json::array();
+  for (const Run& run : r.runs) reps.push_back(runJson(run, *r.model));
+  j["repeats"] = reps;
+  return j;
+}
+
+nlohmann::json comparisonJson(const Comparison& c) {
+  nlohmann::json j = {{"scene", c.scene},
+                      {"a5_ms", c.a5->median.total * 1e3},
+                      {"a5_over_a3", ratioJson(c.a5a3)},
+                      {"a5_over_a4", ratioJson(c.a5a4)},
+                      {"a5_over_a2_m4", ratioJson(c.a5a2m4)},
+                      {"a5_over_bullet", ratioJson(c.a5bullet)},
+                      {"s3_a5_over_a3", std::isnan(c.s3a5a3) ? nlohmann::json(nullptr) : nlohmann::json(c.s3a5a3)}};
+  if (c.scene == kGoalScene && c.goalBullet.valid())
+    j["goal"] = {{"case", c.goal->c->id},
+                 {"a5_over_bullet_at_most", kGoalVsBullet},
+                 {"a5_over_bullet", ratioJson(c.goalBullet)},
+                 {"met", c.goalBullet.median <= kGoalVsBullet}};
+  return j;
+}
+
+nlohmann::json benchJson(const Options& opt, const BenchPlan& plan, const TimedRuns& t) {
+  nlohmann::json doc;
+  doc["tool"] = "substep-bench";
+  doc["date_utc"] = utcNow();
+  doc["machine"] = {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}};
+  doc["build_type"] = SUBSTEP_BUILD_TYPE;
+  doc["source"] = t.source;
+  doc["bullet_version"] = bulletVersion();
+  doc["load_average"] = {{"before", t.loadBefore}, {"after", t.loadAfter}};
+  doc["timed_wall_s"] = t.wall;
+  doc["command"] = opt.command;
+  doc["steps"] = opt.steps;
+  doc["repeat"] = opt.repeat;
+  doc["method"] =
+      "every step timed with steady_clock, no warm-up excluded; run = mean over its steps; "
+      "reported = median over repeats (run with the median total); fresh world per repeat; repeats interleaved";
+  doc["results"] = nlohmann::json::array();
+  for (const Result& r : plan.results) doc["results"].push_back(resultJson(r));
+  doc["comparisons"] = nlohmann::json::array();
+  for (const Comparison& c : compare(plan.results)) doc["comparisons"].push_back(comparisonJson(c));
+  doc["bullet_skipped"] = plan.skipped;
+  return doc;
+}
+
+// --- main -------------------------------------------------------------------------------------
+
+int bench(const Options& opt) {
+  const std::vector<const Case*> cases = chooseCases(opt.algos, opt.scaling);
+  if (opt.scaling) return scaling(cases, opt.sizes, opt.steps, opt.repeat, opt.json);
+  if (!opt.json.empty()) checkJsonPath(opt.json);
+  BenchPlan plan = planBench(opt.scenes, cases);
+  TimedRuns t;
+  t.source = printHeader(opt, plan.results);
+  t.loadBefore = loadAverage();
+  const auto started = Clock::now();
+  timeRepeats(plan, opt.steps, opt.repeat);
+  const bool allFinite = aggregate(plan.results);
+  t.wall = since(started);
+  t.loadAfter = loadAverage();
+  std::cout << "\n";
+  printTables(plan.results, opt.steps, std::cout);
+  printNotes(plan, t);
+  printWarnings(plan.results, allFinite);
   if (!opt.json.empty()) {
-    nlohmann::json doc;
-    doc["tool"] = "substep-bench";
-    doc["date_utc"] = utcNow();
-    doc["machine"] = {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}};
-    doc["build_type"] = SUBSTEP_BUILD_TYPE;
-    doc["source"] = source;
-    doc["bullet_version"] = bulletVersion();
-    doc["load_average"] = {{"before", loadBefore}, {"after", loadAfter}};
-    doc["timed_wall_s"] = wall;
-    doc["command"] = opt.command;
-    doc["steps"] = opt.steps;
-    doc["repeat"] = opt.repeat;
-    doc["method"] =
-        "every step timed with steady_clock, no warm-up excluded; run = mean over its steps; "
-        "reported = median over repeats (run with the median total); fresh world per repeat; repeats interleaved";
-    nlohmann::json list = nlohmann::json::array();
-    for (const Result& r : results) {
-      const Model& model = scenes[r.sceneIndex].model;
-      nlohmann::json j = runJson(r.median, model);
-      j["scene"] = r.scene;
-      j["case"] = r.c->id;
-      j["label"] = r.c->label;
-      j["engine"] = r.c->engine() == EngineKind::Substep ? "substep" : "bullet";
-      if (r.c->engine() == EngineKind::Substep) {
-        j["method"] = r.c->spec;
-        j["settings"] = settingsJson(r.settings);
-        j["solver_last_step"] = {{"iterations", r.median.solverIterations}, {"rows", r.median.rows}};
-      } else {
-        j["method"] = r.c->spec;
-        j["settings"] = {{"dt", r.settings.dt}, {"iterations", r.settings.iterations}, {"sleeping", false}};
-      }
-      j["vs_bullet"] = std::isnan(r.ratio) ? nlohmann::json(nullptr) : nlohmann::json(r.ratio);
-      j["spread"] = spread(r);
-      j["repeatable"] = r.repeatable;
-      nlohmann::json reps = nlohmann::json::array();
-      for (const Run& run : r.runs) reps.push_back(runJson(run, model));
-      j["repeats"] = reps;
-      list.push_back(j);
-    }
-    doc["results"] = list;
-    nlohmann::json comps = nlohmann::json::array();
-    for (const Comparison& c : compare(results)) {
-      nlohmann::json j = {{"scene", c.scene},
-                          {"a5_ms", c.a5->median.total * 1e3},
-                          {"a5_over_a3", ratioJson(c.a5a3)},
-                          {"a5_over_a4", ratioJson(c.a5a4)},
-                          {"a5_over_a2_m4", ratioJson(c.a5a2m4)},
-                          {"a5_over_bullet", ratioJson(c.a5bullet)},
-                          {"s3_a5_over_a3", std::isnan(c.s3a5a3) ? nlohmann::json(nullptr) : nlohmann::json(c.s3a5a3)}};
-      if (c.scene == kGoalScene && c.goalBullet.valid())
-        j["goal"] = {{"case", c.goal->c->id},
-                     {"a5_over_bullet_at_most", kGoalVsBullet},
-                     {"a5_over_bullet", ratioJson(c.goalBullet)},
-                     {"met", c.goalBullet.median <= kGoalVsBullet}};
-      comps.push_back(j);
-    }
-    doc["comparisons"] = comps;
-    doc["bullet_skipped"] = skipped;
-    writeJson(opt.json, doc);
+    writeJson(opt.json, benchJson(opt, plan, t));
     std::cout << "wrote " << opt.json << "\n";
   }
   if (!allFinite) return kExitNonFinite;
-  return allRepeatable ? 0 : kExitNotRepeatable;
+  return allRepeatable(plan.results) ? 0 : kExitNotRepeatable;
 }
 
 }  // namespace

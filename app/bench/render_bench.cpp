@@ -119,16 +119,21 @@ Variant parseVariant(const std::string& text, const RendererOptions& base, bool 
   return v;
 }
 
-int run(const Options& o) {
-  int width = 0, height = 0;
-  parseFrameSize(o.size, width, height);
-  std::vector<std::string> files = o.scenes;
+// --- the plan ---------------------------------------------------------------------------------
+
+// Every scene loaded, so that all are checked before any work.
+std::vector<std::shared_ptr<const Scene>> loadScenes(const std::vector<std::string>& given) {
+  std::vector<std::string> files = given;
   if (files.empty())
     files = {assetsDir() + "/scenes/pyramid.json", assetsDir() + "/scenes/pile.json",
              assetsDir() + "/scenes/ragdoll_pile.json"};
   std::vector<std::shared_ptr<const Scene>> scenes;
-  for (const std::string& f : files) scenes.push_back(std::make_shared<const Scene>(load(f)));  // all checked before any work
+  for (const std::string& f : files) scenes.push_back(std::make_shared<const Scene>(load(f)));
+  return scenes;
+}
 
+// Each --variant over the command line's renderer options; the command line's alone without one.
+std::vector<Variant> variantsOf(const Options& o) {
   RendererOptions ro;
   if (o.samples > 0) ro.samples = o.samples;
   ro.shadowSize = o.shadowSize;
@@ -136,110 +141,157 @@ int run(const Options& o) {
   std::vector<Variant> variants;
   for (const std::string& t : o.variants) variants.push_back(parseVariant(t, ro, !o.aa.empty()));
   if (variants.empty()) variants.push_back(parseVariant("", ro, !o.aa.empty()));
+  return variants;
+}
+
+void printHeader(const Options& o, int width, int height) {
   const char* threads = std::getenv("LP_NUM_THREADS");
   std::cout << "substep-render-bench  " << width << "x" << height << ", " << o.frames << " frames after " << o.warmup
             << " warm-up, stages over " << o.split << " frames; LP_NUM_THREADS=" << (threads ? threads : "unset (2)")
             << "\nload average at start: " << loadText() << "\n";
+}
 
-  for (const std::shared_ptr<const Scene>& shared : scenes) {
-    const Scene& scene = *shared;
-    CameraOptions co;
-    co.preset = o.camera;
-    Look look;
-    try {
-      look.camera = chooseCamera(scene, co);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
-    }
-    look.view.hud = !o.noHud;
-    look.stepCost = true;  // as `substep render` draws it; the list is built once, so every frame draws the same text
-    RenderSession session(shared, {{resolveSettings(scene, SolverOverrides{}), ""}}, look);
-    const auto s0 = Clock::now();
-    session.advanceTo(o.at);
-    if (const Panel* p = session.firstDiverged()) {
-      std::cerr << "substep-render-bench: " << scene.file << ": " << p->problem() << "\n";
-      return kExitNonFinite;
-    }
-    const State& state = session.panel(0).state();
-    const double stepMs = msSince(s0) / std::max<long long>(1, state.step);
-    const auto b0 = Clock::now();
-    const DrawList list = session.drawList(0);
-    const double buildMs = msSince(b0);
-
-    const std::vector<View> views = {View{&list, Viewport{0, 0, width, height}}};
-    // One renderer per variant; their frames are interleaved (frame k of each, then k + 1), so a
-    // change in the machine's load falls on every variant alike.
-    struct Run {
-      std::unique_ptr<GlRenderer> renderer;
-      Image img;
-      double firstMs = 0, cpuMs = 0;
-      long long blended = 0;
-      std::vector<double> total, shadow, pass, resolve, text, readback, aa, sum;
-    };
-    std::vector<Run> runs(variants.size());
-    for (size_t i = 0; i < variants.size(); ++i) {
-      runs[i].renderer = std::make_unique<GlRenderer>(width, height, variants[i].options);
-      const auto f0 = Clock::now();
-      runs[i].renderer->render(views, runs[i].img);
-      runs[i].firstMs = msSince(f0);
-      for (int k = 1; k < o.warmup; ++k) runs[i].renderer->render(views, runs[i].img);
-    }
-    for (int k = 0; k < o.frames; ++k)
-      for (Run& r : runs) {
-        const auto t0 = Clock::now();
-        const double c0 = cpuMs();
-        r.renderer->render(views, r.img);
-        r.cpuMs += cpuMs() - c0;
-        r.total.push_back(msSince(t0));
-      }
-    for (int k = 0; k < o.split; ++k)
-      for (Run& r : runs) {
-        FrameTimings t;
-        r.renderer->render(views, r.img, &t);
-        r.shadow.push_back(1e3 * t.shadow);
-        r.pass.push_back(1e3 * t.scene);
-        r.resolve.push_back(1e3 * t.resolve);
-        r.text.push_back(1e3 * t.text);
-        r.readback.push_back(1e3 * t.readback);
-        r.aa.push_back(1e3 * t.antiAliasing);
-        r.blended = t.blendedPixels;
-        r.sum.push_back(1e3 * t.total());
-      }
-
-    std::printf("\n%s: %d dynamic bodies at t = %.2f s (%lld steps, %.2f ms each); draw list %.2f ms\n",
-                scene.file.c_str(), scene.model.dynamicCount(), state.time, static_cast<long long>(state.step), stepMs,
-                buildMs);
-    for (size_t i = 0; i < runs.size(); ++i) {
-      Run& r = runs[i];
-      if (!o.save.empty()) {
-        std::string name = o.save + "/" + std::filesystem::path(scene.file).stem().string();
-        if (runs.size() > 1) name += "_" + std::to_string(i + 1);
-        writePng(name + ".png", r.img);
-      }
-      const Stats st = stats(r.total);
-      if (!variants[i].name.empty()) std::printf("  variant    %s\n", variants[i].name.c_str());
-      std::printf("  renderer   %s, shadow map %d\n", r.renderer->glInfo().c_str(), variants[i].options.shadowSize);
-      std::printf("  first      %.2f ms (shader compilation, uploads)\n", r.firstMs);
-      std::printf("  frame      median %.2f ms  min %.2f  max %.2f  mean %.2f  (%d frames)\n", st.median, st.min, st.max,
-                  st.mean, o.frames);
-      std::printf("  cpu        %.2f ms a frame, all threads (mean)\n", r.cpuMs / o.frames);
-      if (o.split > 0) {
-        auto line = [](const char* name, const std::vector<double>& v) {
-          const Stats s = stats(v);
-          std::printf("    %-10s median %.2f ms  min %.2f  max %.2f\n", name, s.median, s.min, s.max);
-        };
-        std::printf("  stages, each ended with glFinish (%d frames):\n", o.split);
-        line("shadow", r.shadow);
-        line("scene", r.pass);
-        line("resolve", r.resolve);
-        line("text", r.text);
-        line("read-back", r.readback);
-        line("fxaa/flip", r.aa);
-        if (r.blended > 0) std::printf("    (the filter blended %lld pixels)\n", r.blended);
-        line("sum", r.sum);
-      }
-    }
+RenderSession sceneSession(const std::shared_ptr<const Scene>& scene, const Options& o) {
+  CameraOptions co;
+  co.preset = o.camera;
+  Look look;
+  try {
+    look.camera = chooseCamera(*scene, co);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
   }
+  look.view.hud = !o.noHud;
+  look.stepCost = true;  // as `substep render` draws it; the list is built once, so every frame draws the same text
+  return RenderSession(scene, {{resolveSettings(*scene, SolverOverrides{}), ""}}, look);
+}
+
+// --- the timing -------------------------------------------------------------------------------
+
+// A variant's renderer and what its frames took [ms].
+struct VariantRun {
+  std::unique_ptr<GlRenderer> renderer;
+  Image img;
+  double firstMs = 0, cpuMs = 0;
+  long long blended = 0;
+  std::vector<double> total, shadow, pass, resolve, text, readback, aa, sum;
+};
+
+// A renderer per variant, its first frame timed and the rest of the warm-up drawn.
+std::vector<VariantRun> startRenderers(const std::vector<Variant>& variants, const std::vector<View>& views, int warmup,
+                                       int width, int height) {
+  std::vector<VariantRun> runs(variants.size());
+  for (size_t i = 0; i < variants.size(); ++i) {
+    runs[i].renderer = std::make_unique<GlRenderer>(width, height, variants[i].options);
+    const auto f0 = Clock::now();
+    runs[i].renderer->render(views, runs[i].img);
+    runs[i].firstMs = msSince(f0);
+    for (int k = 1; k < warmup; ++k) runs[i].renderer->render(views, runs[i].img);
+  }
+  return runs;
+}
+
+// Frame k of every variant, then k + 1, so that a change in the machine's load falls on every variant alike.
+void timeFrames(std::vector<VariantRun>& runs, const std::vector<View>& views, int frames) {
+  for (int k = 0; k < frames; ++k)
+    for (VariantRun& r : runs) {
+      const auto t0 = Clock::now();
+      const double c0 = cpuMs();
+      r.renderer->render(views, r.img);
+      r.cpuMs += cpuMs() - c0;
+      r.total.push_back(msSince(t0));
+    }
+}
+
+void timeStages(std::vector<VariantRun>& runs, const std::vector<View>& views, int frames) {
+  for (int k = 0; k < frames; ++k)
+    for (VariantRun& r : runs) {
+      FrameTimings t;
+      r.renderer->render(views, r.img, &t);
+      r.shadow.push_back(1e3 * t.shadow);
+      r.pass.push_back(1e3 * t.scene);
+      r.resolve.push_back(1e3 * t.resolve);
+      r.text.push_back(1e3 * t.text);
+      r.readback.push_back(1e3 * t.readback);
+      r.aa.push_back(1e3 * t.antiAliasing);
+      r.blended = t.blendedPixels;
+      r.sum.push_back(1e3 * t.total());
+    }
+}
+
+// --- the report -------------------------------------------------------------------------------
+
+void saveFrame(const Options& o, const Scene& scene, size_t i, size_t variants, const Image& img) {
+  std::string name = o.save + "/" + std::filesystem::path(scene.file).stem().string();
+  if (variants > 1) name += "_" + std::to_string(i + 1);
+  writePng(name + ".png", img);
+}
+
+void printStages(const VariantRun& r, int split) {
+  auto line = [](const char* name, const std::vector<double>& v) {
+    const Stats s = stats(v);
+    std::printf("    %-10s median %.2f ms  min %.2f  max %.2f\n", name, s.median, s.min, s.max);
+  };
+  std::printf("  stages, each ended with glFinish (%d frames):\n", split);
+  line("shadow", r.shadow);
+  line("scene", r.pass);
+  line("resolve", r.resolve);
+  line("text", r.text);
+  line("read-back", r.readback);
+  line("fxaa/flip", r.aa);
+  if (r.blended > 0) std::printf("    (the filter blended %lld pixels)\n", r.blended);
+  line("sum", r.sum);
+}
+
+void printVariant(const Variant& v, const VariantRun& r, const Options& o) {
+  const Stats st = stats(r.total);
+  if (!v.name.empty()) std::printf("  variant    %s\n", v.name.c_str());
+  std::printf("  renderer   %s, shadow map %d\n", r.renderer->glInfo().c_str(), v.options.shadowSize);
+  std::printf("  first      %.2f ms (shader compilation, uploads)\n", r.firstMs);
+  std::printf("  frame      median %.2f ms  min %.2f  max %.2f  mean %.2f  (%d frames)\n", st.median, st.min, st.max,
+              st.mean, o.frames);
+  std::printf("  cpu        %.2f ms a frame, all threads (mean)\n", r.cpuMs / o.frames);
+  if (o.split > 0) printStages(r, o.split);
+}
+
+// One scene: stepped to --at and its draw list built outside the timing, then every variant timed.
+// 0, or kExitNonFinite when the scene diverged.
+int benchScene(const std::shared_ptr<const Scene>& shared, const Options& o, const std::vector<Variant>& variants, int width,
+               int height) {
+  const Scene& scene = *shared;
+  RenderSession session = sceneSession(shared, o);
+  const auto s0 = Clock::now();
+  session.advanceTo(o.at);
+  if (const Panel* p = session.firstDiverged()) {
+    std::cerr << "substep-render-bench: " << scene.file << ": " << p->problem() << "\n";
+    return kExitNonFinite;
+  }
+  const State& state = session.panel(0).state();
+  const double stepMs = msSince(s0) / std::max<long long>(1, state.step);
+  const auto b0 = Clock::now();
+  const DrawList list = session.drawList(0);
+  const double buildMs = msSince(b0);
+  const std::vector<View> views = {View{&list, Viewport{0, 0, width, height}}};
+  std::vector<VariantRun> runs = startRenderers(variants, views, o.warmup, width, height);
+  timeFrames(runs, views, o.frames);
+  timeStages(runs, views, o.split);
+  std::printf("\n%s: %d dynamic bodies at t = %.2f s (%lld steps, %.2f ms each); draw list %.2f ms\n",
+              scene.file.c_str(), scene.model.dynamicCount(), state.time, static_cast<long long>(state.step), stepMs,
+              buildMs);
+  for (size_t i = 0; i < runs.size(); ++i) {
+    if (!o.save.empty()) saveFrame(o, scene, i, runs.size(), runs[i].img);
+    printVariant(variants[i], runs[i], o);
+  }
+  return 0;
+}
+
+int run(const Options& o) {
+  int width = 0, height = 0;
+  parseFrameSize(o.size, width, height);
+  const std::vector<std::shared_ptr<const Scene>> scenes = loadScenes(o.scenes);
+  const std::vector<Variant> variants = variantsOf(o);
+  printHeader(o, width, height);
+  for (const std::shared_ptr<const Scene>& scene : scenes)
+    if (const int status = benchScene(scene, o, variants, width, height)) return status;
   std::cout << "\nload average at end: " << loadText() << "\n";
   return 0;
 }
