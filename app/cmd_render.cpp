@@ -244,8 +244,8 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
       "\nOutputs: -o x.png writes the frame at --at; -o a folder a numbered PNG sequence; -o x.mp4 H.264 video\n"
       "(ffmpeg, libx264, yuv420p). Physics steps at its own dt; frames are taken at --fps.\n"
       "Comparisons: --compare a2:m=4,a5:n=4 (or --panels) draws the scene under each setting in a grid (2 to 4\n"
-      "panels); settings after the algorithm are key=value separated by ':' (keys n, m, kappa, tau, omega, dt,\n"
-      "tolerance, slop, preset, warm, block); other solver options apply to every panel.");
+      "panels); settings after the algorithm are key=value separated by ':' (any key or alias of `substep\n"
+      "settings`); other solver options apply to every panel.");
   opt->draw.add(*cmd, "--compare,--panels", "1280x720")->required();
   cmd->add_option("-o,--output", opt->output, "Output: FILE.png (one frame), FILE.mp4 (video) or a folder (PNG sequence)")
       ->required();
