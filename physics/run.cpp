@@ -2,6 +2,7 @@
 
 #include "physics/collision/manifold.h"
 
+#include <chrono>
 #include <cstdio>
 
 namespace substep {

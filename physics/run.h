@@ -13,7 +13,6 @@
 
 #include "physics/world.h"
 
-#include <chrono>
 #include <stdexcept>
 #include <string>
 #include <vector>

@@ -14,8 +14,10 @@
 
 #include <array>
 #include <bitset>
+#include <initializer_list>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
