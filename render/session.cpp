@@ -5,7 +5,7 @@
 namespace substep::render {
 
 Panel::Panel(const Scene& scene, PanelSetup setup)
-    : scene_(scene), setup_(std::move(setup)),
+    : setup_(std::move(setup)),
       world_(std::make_unique<World>(scene.model, setup_.settings, scene.initial)),
       engine_(std::make_unique<WorldEngine>(*world_)),
       run_(std::make_unique<RunDriver>(*engine_, std::numeric_limits<long long>::max())) {}

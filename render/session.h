@@ -80,7 +80,6 @@ class Panel {
   void stepOnce();
   bool takeStep();  // false when it diverged
 
-  const Scene& scene_;
   PanelSetup setup_;
   std::unique_ptr<World> world_;
   std::unique_ptr<WorldEngine> engine_;

@@ -39,7 +39,9 @@ TEST(SettingTable, EveryFieldOnceWithAFlagAndHelp) {
     EXPECT_EQ(findSetting(s.key), &s);
     EXPECT_EQ(findSetting(s.flag), &s);
     EXPECT_EQ(&settingTable()[s.index], &s);
-    if (s.resolved()) EXPECT_EQ(&settingOf(s.field), &s) << s.key << ": two rows set one field";
+    if (s.resolved()) {
+      EXPECT_EQ(&settingOf(s.field), &s) << s.key << ": two rows set one field";
+    }
     EXPECT_NE(s.takes.text(), "") << s.key << ": no algorithm reads it";
   }
   // Every field of SolverSettings has its row: the binding below names each field once (a new
@@ -153,7 +155,9 @@ TEST(Schema, DefaultsAndWhichAlgorithmsReadASetting) {
     o.set(&SolverSettings::algorithm, a);
     const SolverSettings r = resolve(o);
     for (const SettingSpec& s : settingTable())
-      if (s.resolved() && std::string(s.key) != "algorithm") EXPECT_EQ(s.get(r), s.defaultFor(a)) << s.key;
+      if (s.resolved() && std::string(s.key) != "algorithm") {
+        EXPECT_EQ(s.get(r), s.defaultFor(a)) << s.key;
+      }
   }
   SolverOverrides scene, cl;
   scene.set(&SolverSettings::kappa, 0.85);  // pyramid.json's, for a5

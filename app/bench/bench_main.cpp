@@ -53,7 +53,6 @@
 namespace substep::bench {
 namespace {
 
-using lab::BulletPeer;
 using lab::bulletUnsupported;
 using lab::bulletVersion;
 using lab::cpuModel;
