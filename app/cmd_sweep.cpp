@@ -330,7 +330,7 @@ void addSweepCommand(CLI::App& app, std::function<int()>& action) {
   m->add_flag("--quiet,-q", merge->quiet, "Print nothing but errors");
   m->callback([merge, &action] { action = [merge] { return runMerge(*merge); }; });
 
-  cmd->callback([opt, cmd, m, &action] {
+  cmd->callback([opt, m, &action] {
     if (m->parsed()) return;
     if (opt->output.empty()) throw CLI::RequiredError("--output");
     action = [opt] { return runSweep(*opt); };
