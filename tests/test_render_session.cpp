@@ -429,7 +429,7 @@ TEST(RenderSession, ARecordedSessionReplaysItsFramesAndEnds) {
   for (size_t k = 0; k < ref.size(); k += 4) frames.push_back(takeSnapshot(scene->model, ref[k]));
   RenderSession s(scene, {{a2, ""}});
   int hooked = 0;
-  s.setSnapshotHook([&](int panel, const Snapshot&) { hooked += panel == 0; });
+  s.setSnapshotHook([&](int panel, const std::shared_ptr<const Scene>&, const Snapshot&) { hooked += panel == 0; });
   const int before = hooked;
   s.setRecorded(scene, {{a2, ""}}, {frames});
   EXPECT_EQ(hooked - before, static_cast<int>(frames.size()));
