@@ -128,8 +128,8 @@ void RenderSession::hookPanel(int i) {
     p.onKeep_ = nullptr;
     return;
   }
-  for (const Snapshot& s : p.history_) hook_(i, s);
-  p.onKeep_ = [this, i](const Snapshot& s) { hook_(i, s); };
+  for (const Snapshot& s : p.history_) hook_(i, scene_, s);
+  p.onKeep_ = [this, i](const Snapshot& s) { hook_(i, scene_, s); };
 }
 
 void RenderSession::setSnapshotHook(SnapshotHook hook) {

@@ -164,8 +164,9 @@ class RenderSession {
   // What history the panels keep; applies to the kept past at once.
   void setHistoryLimits(const HistoryLimits& limits);
   const HistoryLimits& historyLimits() const { return limits_; }
-  // Called with each snapshot a panel keeps (each step; a recorded panel's frames when made).
-  using SnapshotHook = std::function<void(int panel, const Snapshot&)>;
+  // Called with each snapshot a panel keeps (each step; a recorded panel's frames when made, and a
+  // new panel's first at t = 0), with the scene the panel runs.
+  using SnapshotHook = std::function<void(int panel, const std::shared_ptr<const Scene>& scene, const Snapshot&)>;
   void setSnapshotHook(SnapshotHook hook);
   void reset();  // every panel back to the scene's initial state, same settings
   // Replace every panel, or one, starting from the scene's initial state. Throw PanelError.
