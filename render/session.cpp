@@ -115,8 +115,11 @@ DrawList RenderSession::drawList(int i, const State* state) const {
     hud.status = buf;
   }
   const Camera cam = placeCamera(look_.camera, scene_->model, s, look_.orbit);
-  // A diverged world's manifolds belong to its non-finite state.
-  DrawList dl = buildDrawList(scene_->model, s, p.diverged() ? nullptr : &p.world().manifolds(), cam, look_.view, hud);
+  // A diverged world's contacts belong to its non-finite state, and another state has none of them.
+  const Snapshot snap = state || p.diverged() ? takeSnapshot(scene_->model, s) : takeSnapshot(p.world());
+  ViewOptions view = look_.view;
+  view.impulseTime = impulseTime(p.settings());
+  DrawList dl = buildDrawList(scene_->model, snap, cam, view, hud);
   if (!lone) dl.label = settingsLine(p.settings(), LineDetail::Brief);
   return dl;
 }
