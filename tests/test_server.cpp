@@ -270,12 +270,12 @@ TEST(Server, BadParametersNameTheParameter) {
       {s5 + "/view", R"({"contacts": "yes"})", "contacts: expected true or false, got \"yes\""},
       {s5 + "/view", R"({"highlight": ["nobody"]})", "highlight: expected names of bodies of pyramid, got \"nobody\""},
       // play state
-      {s5 + "/play", R"({"speed": 0})", "speed: expected a number in [0.01, 10], got 0"},
-      {s5 + "/play", R"({"speed": 100})", "speed: expected a number in [0.01, 10], got 100"},
+      {s5 + "/play", R"({"speed": 0})", "speed: expected 0.01 to 10 simulated seconds per second (negative: backwards), got 0"},
+      {s5 + "/play", R"({"speed": 100})", "speed: expected a number in [-10, 10], got 100"},
       {s5 + "/pause", R"({"now": true})", "unknown field \"now\"; expected none"},
-      {s5 + "/step", R"({"count": 0})", "count: expected an integer in [1, 600], got 0"},
-      {s5 + "/step", R"({"count": 601})", "count: expected an integer in [1, 600], got 601"},
-      {s5 + "/step", R"({"count": 1.5})", "count: expected an integer in [1, 600], got 1.5"},
+      {s5 + "/step", R"({"count": 0})", "count: expected 1 to 600 steps, negative to go back"},
+      {s5 + "/step", R"({"count": 601})", "count: expected an integer in [-600, 600], got 601"},
+      {s5 + "/step", R"({"count": 1.5})", "count: expected an integer in [-600, 600], got 1.5"},
       {s5 + "/seek", R"({"time": -1})", "time: expected a number in [0, 3600], got -1"},
       {s5 + "/seek", R"({})", "time: expected a number in [0, 3600]"},
       // picking and pushing
@@ -756,8 +756,8 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
   for (const json& m : tl.body["markers"]) penetration = penetration || m["kind"] == "penetration";
   EXPECT_TRUE(penetration) << tl.text;
 
-  // Body "box_0" at the newest step, then at step 30.
-  const Answer selected = post(*c, s + "/select", {{"body", "box_0"}});
+  // Body "col_0_0_9" at the newest step, then at step 30.
+  const Answer selected = post(*c, s + "/select", {{"body", "col_0_0_9"}});
   ASSERT_EQ(selected.status, 200) << selected.text;
   ASSERT_EQ(selected.body["panels"].size(), 2u);
   const json liveBox = selected.body["panels"][0];
@@ -766,13 +766,13 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
   ASSERT_EQ(scrubbed.status, 200) << scrubbed.text;
   EXPECT_EQ(scrubbed.body["timeline"]["live"], false);
   EXPECT_EQ(scrubbed.body["timeline"]["shown_step"], 30);
-  EXPECT_EQ(scrubbed.body["selected"], "box_0");
+  EXPECT_EQ(scrubbed.body["selected"], "col_0_0_9");
   const json st = stats(*c, id);
   EXPECT_EQ(st["panels"][0]["steps"], 90);  // nothing stepped again
   EXPECT_EQ(st["shown_step"], 30);
   const Answer past = call(*c, "GET", s + "/inspect");
   ASSERT_EQ(past.status, 200) << past.text;
-  EXPECT_EQ(past.body["body"], "box_0");
+  EXPECT_EQ(past.body["body"], "col_0_0_9");
   EXPECT_EQ(past.body["panels"][0]["step"], 30);
   EXPECT_NE(past.body["panels"][0]["position"], liveBox["position"]);  // it was falling then
   EXPECT_EQ(post(*c, s + "/scrub", {{"by", -5}}).body["timeline"]["shown_step"], 25);
@@ -781,7 +781,7 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
   EXPECT_EQ(stats(*c, id)["panels"][0]["steps"], 90);
 
   // The past cannot be pushed: 409, saying how to go on.
-  const Answer push = post(*c, s + "/push", {{"body", "box_0"}, {"impulse", {0, 3, 0}}});
+  const Answer push = post(*c, s + "/push", {{"body", "col_0_0_9"}, {"impulse", {0, 3, 0}}});
   EXPECT_EQ(push.status, 409) << push.text;
   EXPECT_NE(push.text.find("go live first"), std::string::npos) << push.text;
 
@@ -809,7 +809,7 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
 
   // Live again: the newest step, and a push works.
   EXPECT_EQ(post(*c, s + "/scrub", {{"live", true}}).body["timeline"]["shown_step"], 90);
-  EXPECT_EQ(post(*c, s + "/push", {{"body", "box_0"}, {"impulse", {0, 3, 0}}}).status, 200);
+  EXPECT_EQ(post(*c, s + "/push", {{"body", "col_0_0_9"}, {"impulse", {0, 3, 0}}}).status, 200);
   EXPECT_EQ(post(*c, s + "/scrub", json::object()).status, 400);
   EXPECT_EQ(post(*c, s + "/select", {{"body", "nobody"}}).status, 400);
   EXPECT_EQ(post(*c, s + "/select", {{"body", nullptr}}).body["body"], nullptr);
