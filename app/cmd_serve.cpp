@@ -38,7 +38,7 @@ void addServeCommand(CLI::App& app, std::function<int()>& action) {
                   "Seconds of steps each session keeps to scrub back to on the timeline (default 60)")
       ->check(finiteIn(0, 3600));
   cmd->add_option("--timeline-mb", o->timelineMb,
-                  "At most this many MB of kept steps per panel; the oldest go first (default 1024)")
+                  "At most this many MB of kept steps per session, shared by its panels; the oldest go first (default 512)")
       ->check(CLI::Range(1, 65536));
   cmd->add_option("--quality", o->jpegQuality, "JPEG quality of the stream, 1-100 (default 80)")->check(CLI::Range(1, 100));
   cmd->add_option("--web", o->webRoot, "Folder of the page's files (default: the assets' web/)");

@@ -123,7 +123,7 @@ RenderSession::RenderSession(std::shared_ptr<const Scene> scene, const std::vect
 
 void RenderSession::hookPanel(int i) {
   Panel& p = *panels_[static_cast<size_t>(i)];
-  p.limits_ = p.recorded_ ? p.limits_ : limits_;
+  if (!p.recorded_) p.limits_ = {limits_.seconds, limits_.bytes / panels_.size()};
   if (!hook_) {
     p.onKeep_ = nullptr;
     return;
@@ -141,7 +141,7 @@ void RenderSession::setHistoryLimits(const HistoryLimits& limits) {
   limits_ = limits;
   for (auto& p : panels_)
     if (!p->recorded_) {
-      p->limits_ = limits;
+      p->limits_ = {limits.seconds, limits.bytes / panels_.size()};
       if (!p->history_.empty()) {  // the kept past trimmed now: keep() of the newest again
         Snapshot s = std::move(p->history_.back());
         p->historyBytes_ -= snapshotBytes(s);

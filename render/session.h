@@ -56,11 +56,12 @@ class PanelError : public std::invalid_argument {
   const int panel;  // index into the setups
 };
 
-// How much of its past a panel keeps (the timeline): the steps of the last `seconds` of simulated
-// time, and at most `bytes` of snapshots; the older go first.
+// How much of their past a session's panels keep (the timeline): the steps of the last `seconds`
+// of simulated time, and at most `bytes` of snapshots in all (shared equally by the panels); the
+// older go first.
 struct HistoryLimits {
   double seconds = 60;
-  size_t bytes = size_t{1} << 30;
+  size_t bytes = size_t{512} << 20;
 };
 
 // A panel: its World, what its steps cost, whether it diverged, and its past. A panel keeps a
