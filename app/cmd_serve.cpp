@@ -32,6 +32,12 @@ void addServeCommand(CLI::App& app, std::function<int()>& action) {
       ->check(finiteIn(0.1, 86400));
   cmd->add_option("--history", o->history, "Seconds of frames each session keeps for clips of the last seconds (default 10)")
       ->check(finiteIn(0, 60));
+  cmd->add_option("--timeline", o->timelineSeconds,
+                  "Seconds of steps each session keeps to scrub back to on the timeline (default 60)")
+      ->check(finiteIn(0, 3600));
+  cmd->add_option("--timeline-mb", o->timelineMb,
+                  "At most this many MB of kept steps per panel; the oldest go first (default 1024)")
+      ->check(CLI::Range(1, 65536));
   cmd->add_option("--quality", o->jpegQuality, "JPEG quality of the stream, 1-100 (default 80)")->check(CLI::Range(1, 100));
   cmd->add_option("--web", o->webRoot, "Folder of the page's files (default: the assets' web/)");
   cmd->add_option("--scenes", o->scenesDir, "Folder of the scene files it offers (default: the assets' scenes/)");

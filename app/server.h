@@ -20,6 +20,8 @@ struct ServerOptions {
   int fps = 30;
   double idleTimeout = 300;      // [s] a session with no request and no stream is closed after this
   double history = 10;           // [s] of frames kept per session for clips of the last seconds
+  double timelineSeconds = 60;   // [s] of steps kept per panel to scrub back to
+  int timelineMb = 1024;         // at most, per panel
   int jpegQuality = 80;
   std::string webRoot;           // the page's files (default: the assets' web/)
   std::string scenesDir;         // scene files listed and loaded by name (default: the assets' scenes/)

@@ -14,9 +14,7 @@ const char* resultName(Verdict::Result r) {
   return "?";
 }
 
-namespace {
-
-Check atMost(const std::string& name, std::optional<double> value, double bound) {
+Check checkAtMost(const std::string& name, std::optional<double> value, double bound) {
   Check c;
   if (!value) {
     c.text = std::string(metricLabel(name)) + ": not measured in this run";
@@ -29,8 +27,6 @@ Check atMost(const std::string& name, std::optional<double> value, double bound)
   return c;
 }
 
-}  // namespace
-
 Verdict judge(const Scene& scene, const RunResult& run) {
   Verdict v;
   if (run.refused) {
@@ -42,7 +38,7 @@ Verdict judge(const Scene& scene, const RunResult& run) {
   const SceneCriteria& c = *scene.criteria;
   const Metrics& m = run.metrics;
   if (run.diverged) v.checks.push_back(Check{run.stopped.substr(0, run.stopped.find(':')), false, INFINITY});
-  for (const auto& [name, bound] : c.pass) v.checks.push_back(atMost(name, metricValue(m, name), bound));
+  for (const auto& [name, bound] : c.pass) v.checks.push_back(checkAtMost(name, metricValue(m, name), bound));
   if (c.moving) {
     const double least = m.movingLeast.value_or(0);
     Check k;

@@ -24,6 +24,9 @@ struct Verdict {
 };
 const char* resultName(Verdict::Result r);  // "pass", "fail", "refused", "none"
 
+// A "pass" bound of the criteria: the metric `name` at most `bound` (not ok when not measured).
+Check checkAtMost(const std::string& name, std::optional<double> value, double bound);
+
 // Refused when the method cannot run the scene; no verdict (NoCriteria) when the scene states no
 // check (no criteria, or criteria without pass bounds); else pass when the run stayed finite,
 // did not diverge, and met every check.

@@ -1,5 +1,6 @@
 #include "render/live_session.h"
 
+#include "physics/failure.h"
 #include "render/frame_sink.h"
 #include "render/scene_builder.h"
 
@@ -55,6 +56,7 @@ LiveSession::LiveSession(std::shared_ptr<const Scene> scene, const std::vector<P
                          const LiveConfig& config)
     : config_(config), session_(std::move(scene), panels, look), look_(look) {
   config_.fps = std::max(1, config_.fps);
+  session_.setHistoryLimits(config_.timeline);
   lastTouch_ = wallNow();
   collectStats(stats_);  // stats from the start, before the first tick
   thread_ = std::thread([this] { run(); });
@@ -96,7 +98,9 @@ double LiveSession::idleSeconds() const { return viewers_ > 0 ? 0.0 : std::max(0
 
 void LiveSession::play(double speed) {
   std::lock_guard<std::mutex> lk(m_);
-  if (!playing_) goal_ = session_.panel(0).state().time;
+  if (!playing_ || (speed < 0) != (speed_ < 0)) goal_ = session_.time();
+  if (status_ == "at the first kept step" || status_ == "the end of the recording") status_.clear();
+  if (session_.recorded() && speed > 0 && session_.ended()) session_.view(session_.firstKept());  // again from its start
   playing_ = true;
   speed_ = speed;
   seekTo_.reset();
@@ -121,20 +125,38 @@ double LiveSession::step(int count) {
   std::lock_guard<std::mutex> lk(m_);
   playing_ = false;
   seekTo_.reset();
-  for (int k = 0; k < count && !session_.firstDiverged(); ++k) session_.step();
+  if (count < 0) session_.viewBy(count);
+  for (int k = 0; k < count && !session_.firstDiverged() && !session_.ended(); ++k) session_.step();
   if (const Panel* p = session_.firstDiverged(); p && !reportedDivergence_) {
     status_ = p->problem();
     reportedDivergence_ = true;
   }
   dirty_ = true;
   republish();
-  return session_.panel(0).state().time;
+  return session_.time();
 }
 
 void LiveSession::reset() {
   std::lock_guard<std::mutex> lk(m_);
-  session_.reset();
-  restarted();
+  if (session_.recorded()) {
+    session_.view(session_.firstKept());
+    seekTo_.reset();
+    goal_ = session_.time();
+    status_.clear();
+    dirty_ = true;
+  } else {
+    session_.reset();
+    restarted();
+  }
+  republish();
+}
+
+void LiveSession::live() {
+  std::lock_guard<std::mutex> lk(m_);
+  session_.viewLive();
+  playing_ = false;
+  seekTo_.reset();
+  dirty_ = true;
   republish();
 }
 
@@ -148,13 +170,20 @@ void LiveSession::restarted() {
 
 void LiveSession::seek(double t) {
   std::lock_guard<std::mutex> lk(m_);
-  if (t + 0.5 * session_.panel(0).settings().dt < session_.panel(0).state().time) {
-    session_.reset();  // panels only go forward
+  const double dt = session_.panel(0).settings().dt;
+  playing_ = false;
+  seekTo_.reset();
+  if (t + 0.5 * dt >= session_.firstKept() && (t - 0.5 * dt <= session_.lastKept() || session_.ended())) {
+    session_.view(t);  // kept: shown at once
+  } else if (t + 0.5 * dt < session_.firstKept()) {
+    session_.reset();  // older than the kept past: from the start again
     status_.clear();
     reportedDivergence_ = false;
+    seekTo_ = t;
+  } else {
+    session_.viewLive();  // later than the newest: step to it
+    seekTo_ = t;
   }
-  seekTo_ = t;
-  playing_ = false;
   dirty_ = true;
   republish();
 }
@@ -214,19 +243,33 @@ void LiveSession::advance(double now, double wallDt) {
     goal_ += speed_ * std::min(wallDt, kMaxOwed);
     if (wallDt > kMaxOwed) behindTick_ = true;
   }
+  if (playing_ && speed_ < 0) {  // backwards: through the kept steps only
+    const double first = session_.firstKept();
+    session_.view(std::max(goal_, first));
+    dirty_ = true;
+    if (goal_ <= first) {
+      playing_ = false;
+      status_ = "at the first kept step";
+    }
+    return;
+  }
   const double goal = seekTo_ ? *seekTo_ : goal_;
   for (;;) {
     double t = std::numeric_limits<double>::infinity(), dt = t;
     for (int i = 0; i < session_.panelCount(); ++i) {
       const Panel& p = session_.panel(i);
-      if (p.diverged()) continue;
+      if (p.ended()) continue;
       t = std::min(t, p.state().time);
       dt = std::min(dt, p.settings().dt);
     }
-    if (!std::isfinite(t) || t + 0.5 * dt > goal) {  // there, or every panel diverged
+    if (!std::isfinite(t) || t + 0.5 * dt > goal) {  // there, or every panel ended
       if (seekTo_) {
         seekTo_.reset();
         playing_ = false;
+      }
+      if (!std::isfinite(t) && session_.recorded() && playing_) {
+        playing_ = false;
+        status_ = "the end of the recording";
       }
       break;
     }
@@ -258,6 +301,12 @@ void LiveSession::collectStats(LiveStats& s) {
   s.seeking = seekTo_.has_value();
   s.speed = speed_;
   s.status = status_;
+  s.first = session_.firstKept();
+  s.last = session_.lastKept();
+  s.shown = session_.time();
+  s.shownStep = session_.panel(0).state().step;
+  s.live = session_.live();
+  s.recorded = session_.recorded();
   const int n = session_.panelCount();
   prevSteps_.resize(static_cast<size_t>(n), 0);
   prevPhysics_.resize(static_cast<size_t>(n), 0);
@@ -282,17 +331,18 @@ void LiveSession::collectStats(LiveStats& s) {
     prevPhysics_[k] = p.physicsSeconds();
     ps.stepMs = lastStepMs_[k];
     ps.stages = r.times;
-    ps.contacts = r.contactPoints;
-    ps.manifolds = r.manifolds;
     ps.pairs = r.pairs;
     ps.diverged = p.diverged();
+    ps.ended = p.ended();
     ps.problem = p.problem();
-    if (!p.diverged()) {  // a diverged world's measures are not numbers
-      ps.penetration = w.maxPenetration();
-      ps.jointError = w.maxJointError();
-      ps.kinetic = w.kineticEnergy();
-      ps.potential = w.potentialEnergy();
-    }
+    // The measures of the step shown (a diverged panel's last finite one).
+    const Snapshot& shown = p.shown();
+    ps.contacts = static_cast<int>(shown.contacts.size());
+    ps.manifolds = static_cast<int>(shown.manifolds.size());
+    ps.penetration = shown.deepest();
+    ps.jointError = shown.worstJointError();
+    ps.kinetic = kineticEnergy(session_.scene().model, shown.state);
+    ps.potential = potentialEnergy(session_.scene().model, shown.state);
     s.panels.push_back(std::move(ps));
   }
 }
@@ -321,7 +371,7 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
       dirty_ = false;
     }
     collectStats(s);
-    simTime = session_.panel(0).state().time;
+    simTime = session_.time();
   }
   std::shared_ptr<Image> image;
   double drawEnd = physicsEnd, drawWait = 0;

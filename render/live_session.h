@@ -66,6 +66,7 @@ struct LiveConfig {
   int fps = 30;                 // frames per wall-clock second
   int jpegQuality = 80;
   double historySeconds = 10;   // frames kept for clips of the last seconds
+  HistoryLimits timeline;       // the steps kept to scrub back to (RenderSession::view)
   double physicsBudget = 0.8;   // share of a tick the physics may take before it falls behind
   RendererOptions renderer;
   std::string ffmpeg;           // for clips; "" refuses them
@@ -85,12 +86,17 @@ struct LivePanelStats {
   double kinetic = 0, potential = 0;       // [J]
   bool diverged = false;
   std::string problem;
+  bool ended = false;           // diverged, or a recording at its end
 };
 
 struct LiveStats {
   long long seq = 0;            // increases with every tick that published
   long long frames = 0;         // frames drawn since the start
   bool playing = false, seeking = false;
+  // The timeline: the kept span and what is shown [s]; live: the newest step is shown.
+  double first = 0, last = 0, shown = 0;
+  long long shownStep = 0;
+  bool live = true, recorded = false;
   double speed = 1;             // asked: simulated seconds per wall second
   double achieved = 0;          // what the last second achieved (while playing)
   bool behind = false;          // playing slower than asked: the physics cannot keep up
@@ -154,13 +160,19 @@ class LiveSession {
     return f(session_, look_);
   }
 
-  void play(double speed);   // speed: simulated seconds per wall second
+  // speed: simulated seconds per wall second; < 0 plays backwards through the kept steps (and
+  // pauses at the first). Forward from a past step replays the kept steps, then steps on.
+  void play(double speed);
   void pause();
-  // `count` steps now, paused (the answer waits for them). Returns the simulated time.
+  // `count` steps now, paused (the answer waits for them); count < 0 goes back through the kept
+  // steps. Returns the simulated time shown.
   double step(int count);
-  void reset();              // to t = 0, playing on if it played
-  // Plays as fast as it can to simulated time t (from the start if t is earlier), then pauses.
+  void reset();              // to t = 0, playing on if it played (a recording: to its start)
+  // To simulated time t, paused: at once when the step is kept (scrubbing); forward by stepping as
+  // fast as it can when t is later than the newest; from the start when t is earlier than the
+  // first kept step.
   void seek(double t);
+  void live();               // the newest step, paused
   bool playing() const;
 
   // The first frame newer than `after`, waiting up to `timeout` seconds for it; the latest frame

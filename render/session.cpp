@@ -1,20 +1,66 @@
 #include "render/session.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace substep::render {
+
+namespace {
+
+// The past is kept, not re-simulated: changing it would need the world as it was then, which a
+// snapshot is not (the contact cache, warm starts).
+std::invalid_argument pastError(const std::string& what, double t) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.3f", t);
+  return std::invalid_argument("cannot " + what + " in the past: the timeline shows t = " + buf +
+                               " s; go live first (the timeline's live button, or scrub with {\"live\": true})");
+}
+
+}  // namespace
+
+size_t snapshotBytes(const Snapshot& s) {
+  return sizeof(Snapshot) + s.state.bodies.size() * sizeof(BodyState) + s.manifolds.size() * sizeof(ManifoldSnap) +
+         s.contacts.size() * sizeof(ContactSnap) + s.joints.size() * sizeof(JointSnap);
+}
 
 Panel::Panel(const Scene& scene, PanelSetup setup)
     : setup_(std::move(setup)),
       world_(std::make_unique<World>(scene.model, setup_.settings, scene.initial)),
       engine_(std::make_unique<WorldEngine>(*world_)),
-      run_(std::make_unique<RunDriver>(*engine_, std::numeric_limits<long long>::max())) {}
+      run_(std::make_unique<RunDriver>(*engine_, std::numeric_limits<long long>::max())) {
+  keep(takeSnapshot(scene.model, world_->state()));
+}
+
+Panel::Panel(const Scene& scene, PanelSetup setup, std::vector<Snapshot> frames) : Panel(scene, std::move(setup)) {
+  if (frames.empty()) throw std::invalid_argument("a recorded panel needs at least one frame");
+  recorded_ = true;
+  history_.clear();
+  historyBytes_ = 0;
+  limits_ = {std::numeric_limits<double>::infinity(), std::numeric_limits<size_t>::max()};  // a recording is kept whole
+  for (Snapshot& f : frames) keep(std::move(f));
+  cursor_ = 0;  // from its start
+}
+
+void Panel::keep(Snapshot s) {
+  historyBytes_ += snapshotBytes(s);
+  history_.push_back(std::move(s));
+  if (onKeep_) onKeep_(history_.back());
+  const double newest = history_.back().state.time;
+  // The oldest go while the past exceeds the limits (the newest stays whatever it costs).
+  while (history_.size() > 1 && (history_.front().state.time < newest - limits_.seconds - 1e-9 || historyBytes_ > limits_.bytes)) {
+    historyBytes_ -= snapshotBytes(history_.front());
+    history_.pop_front();
+    if (cursor_) *cursor_ = *cursor_ > 0 ? *cursor_ - 1 : 0;
+  }
+  if (cursor_ && *cursor_ + 1 >= history_.size()) cursor_.reset();  // the newest is live
+}
 
 bool Panel::takeStep() {
   if (!run_->stepOnce()) {
     const RunOutcome& o = run_->outcome();
     diverged_ = true;
     refused_ = o.end == RunOutcome::End::Refused;
+    divergedAt_ = world_->state().time;
     problem_ = (name().empty() ? std::string() : "panel \"" + name() + "\": ") + o.message;
     return false;
   }
@@ -23,14 +69,35 @@ bool Panel::takeStep() {
   physicsSeconds_ += r.times.total();
   ++costSteps_;
   ++steps_;
+  keep(takeSnapshot(*world_));
   return true;
 }
 
+void Panel::view(double t) {
+  // The newest kept at or before t (times increase along the history).
+  const double eps = 0.5 * world_->settings().dt;
+  size_t lo = 0, hi = history_.size();  // first index with time > t + eps
+  while (lo < hi) {
+    const size_t mid = (lo + hi) / 2;
+    if (history_[mid].state.time > t + eps) hi = mid; else lo = mid + 1;
+  }
+  const size_t k = lo == 0 ? 0 : lo - 1;
+  if (k + 1 == history_.size()) cursor_.reset(); else cursor_ = k;
+}
+
+void Panel::moveCursor(long long by) {
+  const long long last = static_cast<long long>(history_.size()) - 1;
+  const long long k = std::clamp<long long>(cursor() + by, 0, last);
+  if (k == last) cursor_.reset(); else cursor_ = static_cast<size_t>(k);
+}
+
 void Panel::advanceTo(double t) {
-  if (diverged_) return;
   const double dt = world_->settings().dt;
-  // A copy per advance (a frame), not per step: what a diverged panel goes on showing.
-  if (world_->state().time + 0.5 * dt <= t) lastGood_ = world_->state();
+  if (cursor_) {  // the kept past first: replayed, not stepped again
+    view(t);
+    if (cursor_ || recorded_ || history_.back().state.time + 0.5 * dt > t) return;
+  }
+  if (diverged_ || recorded_) return;
   while (world_->state().time + 0.5 * dt <= t)
     if (!takeStep()) return;
   if (costSteps_ > 0) lastStepMs_ = 1e3 * costSum_ / costSteps_;
@@ -39,8 +106,11 @@ void Panel::advanceTo(double t) {
 }
 
 void Panel::stepOnce() {
-  if (diverged_) return;
-  lastGood_ = world_->state();
+  if (cursor_) {
+    moveCursor(1);
+    return;
+  }
+  if (diverged_ || recorded_) return;
   if (takeStep()) lastStepMs_ = 1e3 * costSum_;
   costSum_ = 0;
   costSteps_ = 0;
@@ -49,6 +119,89 @@ void Panel::stepOnce() {
 RenderSession::RenderSession(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels, Look look)
     : scene_(std::move(scene)), look_(std::move(look)) {
   setPanels(panels);
+}
+
+void RenderSession::hookPanel(int i) {
+  Panel& p = *panels_[static_cast<size_t>(i)];
+  p.limits_ = p.recorded_ ? p.limits_ : limits_;
+  if (!hook_) {
+    p.onKeep_ = nullptr;
+    return;
+  }
+  for (const Snapshot& s : p.history_) hook_(i, scene_, s);
+  p.onKeep_ = [this, i](const Snapshot& s) { hook_(i, scene_, s); };
+}
+
+void RenderSession::setSnapshotHook(SnapshotHook hook) {
+  hook_ = std::move(hook);
+  for (int i = 0; i < panelCount(); ++i) hookPanel(i);
+}
+
+void RenderSession::setHistoryLimits(const HistoryLimits& limits) {
+  limits_ = limits;
+  for (auto& p : panels_)
+    if (!p->recorded_) {
+      p->limits_ = limits;
+      if (!p->history_.empty()) {  // the kept past trimmed now: keep() of the newest again
+        Snapshot s = std::move(p->history_.back());
+        p->historyBytes_ -= snapshotBytes(s);
+        p->history_.pop_back();
+        const auto hook = std::move(p->onKeep_);
+        p->onKeep_ = nullptr;
+        p->keep(std::move(s));
+        p->onKeep_ = hook;
+      }
+    }
+}
+
+void RenderSession::view(double t) {
+  for (auto& p : panels_) p->view(t);
+}
+
+void RenderSession::viewBy(long long k) {
+  panels_[0]->moveCursor(k);
+  const double t = panels_[0]->state().time;
+  for (size_t i = 1; i < panels_.size(); ++i) panels_[i]->view(t);
+}
+
+void RenderSession::viewLive() {
+  for (auto& p : panels_) p->cursor_.reset();
+}
+
+bool RenderSession::live() const {
+  for (const auto& p : panels_)
+    if (!p->live()) return false;
+  return true;
+}
+
+bool RenderSession::ended() const {
+  for (const auto& p : panels_)
+    if (!p->ended()) return false;
+  return true;
+}
+
+double RenderSession::firstKept() const {
+  double t = -std::numeric_limits<double>::infinity();
+  for (const auto& p : panels_) t = std::max(t, p->history_.front().state.time);
+  return t;
+}
+
+double RenderSession::lastKept() const { return panels_[0]->history_.back().state.time; }
+
+void RenderSession::setRecorded(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels,
+                                std::vector<std::vector<Snapshot>> frames) {
+  if (frames.size() != panels.size()) throw PanelError(0, "a recorded session needs one list of frames per panel");
+  std::vector<std::unique_ptr<Panel>> made;
+  for (size_t i = 0; i < panels.size(); ++i) {
+    try {
+      made.push_back(std::make_unique<Panel>(*scene, panels[i], std::move(frames[i])));
+    } catch (const std::invalid_argument& e) {
+      throw PanelError(static_cast<int>(i), e.what());
+    }
+  }
+  panels_ = std::move(made);
+  scene_ = std::move(scene);
+  for (int i = 0; i < panelCount(); ++i) hookPanel(i);
 }
 
 const Panel* RenderSession::firstDiverged() const {
@@ -82,11 +235,13 @@ void RenderSession::setScene(std::shared_ptr<const Scene> scene, const std::vect
   }
   panels_ = std::move(made);  // all or nothing; the worlds go before the scene they refer to
   scene_ = std::move(scene);
+  for (int i = 0; i < panelCount(); ++i) hookPanel(i);
 }
 
 void RenderSession::setPanel(int i, const PanelSetup& setup) {
   try {
     panels_[static_cast<size_t>(i)] = std::make_unique<Panel>(*scene_, setup);
+    hookPanel(i);
   } catch (const std::invalid_argument& e) {
     throw PanelError(i, e.what());
   }
@@ -94,6 +249,8 @@ void RenderSession::setPanel(int i, const PanelSetup& setup) {
 
 void RenderSession::setSettings(int i, const SolverSettings& settings) {
   Panel& p = *panels_[static_cast<size_t>(i)];
+  if (p.recorded_) throw std::invalid_argument("a recording's settings are what it was recorded with; they cannot change");
+  if (!p.live()) throw pastError("change the settings", p.state().time);
   p.world_->setSettings(settings);
   p.setup_.settings = settings;
 }
@@ -115,8 +272,9 @@ DrawList RenderSession::drawList(int i, const State* state) const {
     hud.status = buf;
   }
   const Camera cam = placeCamera(look_.camera, scene_->model, s, look_.orbit);
-  // A diverged world's manifolds belong to its non-finite state.
-  DrawList dl = buildDrawList(scene_->model, s, p.diverged() ? nullptr : &p.world().manifolds(), cam, look_.view, hud);
+  // A diverged world's manifolds belong to its non-finite state; a past step's are not the world's.
+  const bool current = !p.diverged() && p.live() && !p.recorded() && !state;
+  DrawList dl = buildDrawList(scene_->model, s, current ? &p.world().manifolds() : nullptr, cam, look_.view, hud);
   if (!lone) dl.label = settingsLine(p.settings(), LineDetail::Brief);
   return dl;
 }
@@ -149,6 +307,8 @@ RenderSession::Pick RenderSession::pick(int width, int height, double x, double 
 }
 
 void RenderSession::push(int from, int body, const Vec3& impulse, const Vec3& point) {
+  if (recorded()) throw std::invalid_argument("a recording is replayed as it was: its bodies cannot be pushed");
+  if (!live()) throw pastError("push a body", time());
   const BodyState& b = panel(from).state().bodies.at(static_cast<size_t>(body));
   const Vec3 local = b.q.conjugate() * (point - b.x);
   for (auto& p : panels_) {

@@ -14,16 +14,20 @@
 // one session can be drawn by several renderers (the benchmark's variants).
 #pragma once
 
+#include "physics/run.h"
 #include "physics/scene_file.h"
 #include "physics/settings.h"
-#include "physics/run.h"
+#include "physics/snapshot.h"
 #include "physics/world.h"
 #include "render/gl_renderer.h"
 #include "render/image.h"
 #include "render/scene_builder.h"
 
+#include <deque>
+#include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -52,17 +56,38 @@ class PanelError : public std::invalid_argument {
   const int panel;  // index into the setups
 };
 
-// A panel: its World, what its steps cost, and whether it diverged.
+// How much of its past a panel keeps (the timeline): the steps of the last `seconds` of simulated
+// time, and at most `bytes` of snapshots; the older go first.
+struct HistoryLimits {
+  double seconds = 60;
+  size_t bytes = size_t{1} << 30;
+};
+
+// A panel: its World, what its steps cost, whether it diverged, and its past. A panel keeps a
+// Snapshot of every step (its history, from t = 0 while the limits allow) and shows one of them:
+// the newest (live) or the one a cursor points at (the timeline scrubbed back). A recorded panel
+// (a recording's frames, physics/recording.h) has its whole history from the start and never
+// steps its World: it ends where the recording does.
 class Panel {
  public:
   Panel(const Scene& scene, PanelSetup setup);  // throws std::invalid_argument (bad settings)
+  // A recorded panel: `frames` in order of time, at least one.
+  Panel(const Scene& scene, PanelSetup setup, std::vector<Snapshot> frames);
 
   const PanelSetup& setup() const { return setup_; }
   const std::string& name() const { return setup_.name; }
   const SolverSettings& settings() const { return world_->settings(); }
   const World& world() const { return *world_; }
-  // The state drawn: the world's, or after a divergence the last state the panel advanced from.
-  const State& state() const { return diverged_ ? lastGood_ : world_->state(); }
+  // What is shown: the snapshot at the cursor, else the newest kept (after a divergence, the last
+  // finite step). state() is its state.
+  const Snapshot& shown() const { return cursor_ ? history_[*cursor_] : history_.back(); }
+  const State& state() const { return shown().state; }
+  bool live() const { return !cursor_; }
+  bool recorded() const { return recorded_; }
+  // Nothing more to show going forward: diverged, or a recording at its last frame.
+  bool ended() const { return diverged_ || (recorded_ && live()); }
+  const std::deque<Snapshot>& history() const { return history_; }
+  int cursor() const { return cursor_ ? static_cast<int>(*cursor_) : static_cast<int>(history_.size()) - 1; }
   bool diverged() const { return diverged_; }
   // Its algorithm refused the scene (A1 beyond its size): it stopped, as a diverged panel does,
   // but the settings are at fault, not the run.
@@ -70,6 +95,7 @@ class Panel {
   // After a divergence: `panel "a5:n=4": the simulation diverged at step 12 (t = 0.2 s): body ...`
   // (without the panel part when it has no name).
   const std::string& problem() const { return problem_; }
+  double divergedAt() const { return divergedAt_; }  // the time of the step that diverged [s]
   double lastStepMs() const { return lastStepMs_; }  // mean cost of the steps of the last advance that took any [ms]
   long long steps() const { return steps_; }          // taken since the start
   double physicsSeconds() const { return physicsSeconds_; }  // their cost [s]
@@ -79,20 +105,34 @@ class Panel {
   void advanceTo(double t);
   void stepOnce();
   bool takeStep();  // false when it diverged
+  void keep(Snapshot s);
+  // The cursor to the newest kept snapshot at or before t (the first when t is earlier); live
+  // when that is the newest.
+  void view(double t);
+  void moveCursor(long long by);  // kept snapshots forward (> 0) or back
 
   PanelSetup setup_;
   std::unique_ptr<World> world_;
   std::unique_ptr<WorldEngine> engine_;
   std::unique_ptr<RunDriver> run_;  // the run driver's one step, its one divergence message
-  State lastGood_;
+  std::deque<Snapshot> history_;
+  std::optional<size_t> cursor_;
+  size_t historyBytes_ = 0;
+  HistoryLimits limits_;
+  std::function<void(const Snapshot&)> onKeep_;
+  bool recorded_ = false;
   bool diverged_ = false, refused_ = false;
   std::string problem_;
+  double divergedAt_ = std::numeric_limits<double>::quiet_NaN();
   double lastStepMs_ = std::numeric_limits<double>::quiet_NaN();
   double costSum_ = 0;  // [s] of the steps of this advance
   int costSteps_ = 0;
   long long steps_ = 0;
   double physicsSeconds_ = 0;
 };
+
+// The bytes a snapshot holds (for HistoryLimits).
+size_t snapshotBytes(const Snapshot& s);
 
 class RenderSession {
  public:
@@ -105,11 +145,29 @@ class RenderSession {
   const Panel& panel(int i) const { return *panels_[static_cast<size_t>(i)]; }
   const Panel* firstDiverged() const;  // nullptr while every panel is finite
 
-  // Steps every panel that has not diverged until its time is the step nearest t. Panels only go
-  // forward: to seek back, reset() then advanceTo(). A panel that diverges stops, marked; the
-  // others go on.
+  // Goes forward to the step nearest t: through the kept history while the panels show the past
+  // (the same trajectory, not stepped again), then by stepping every panel that has not ended. A
+  // panel that diverges stops, marked; the others go on.
   void advanceTo(double t);
-  void step();   // one step of every panel that has not diverged
+  void step();   // one step forward of every panel that has not ended (a kept one when in the past)
+  // The timeline: every panel shows its newest kept step at or before t (the first kept when t is
+  // earlier; live at the newest); by(k): k kept steps of panel 0 forward or back, the others to
+  // its time; live(): the newest of each.
+  void view(double t);
+  void viewBy(long long k);
+  void viewLive();
+  bool live() const;              // every panel shows its newest step
+  bool ended() const;             // every panel has ended (nothing to step or replay forward)
+  double time() const { return panel(0).state().time; }  // shown [s]
+  double firstKept() const;       // the earliest time every panel still keeps [s]
+  double lastKept() const;        // panel 0's newest [s]
+  // What history the panels keep; applies to the kept past at once.
+  void setHistoryLimits(const HistoryLimits& limits);
+  const HistoryLimits& historyLimits() const { return limits_; }
+  // Called with each snapshot a panel keeps (each step; a recorded panel's frames when made, and a
+  // new panel's first at t = 0), with the scene the panel runs.
+  using SnapshotHook = std::function<void(int panel, const std::shared_ptr<const Scene>& scene, const Snapshot&)>;
+  void setSnapshotHook(SnapshotHook hook);
   void reset();  // every panel back to the scene's initial state, same settings
   // Replace every panel, or one, starting from the scene's initial state. Throw PanelError.
   void setPanels(const std::vector<PanelSetup>& panels);
@@ -117,7 +175,13 @@ class RenderSession {
   // Another scene, with its panels, from its initial state. Throws PanelError (nothing changed).
   void setScene(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels);
   // Changes a panel's solver between steps; it goes on from its state (World::setSettings).
+  // Throws std::invalid_argument while the timeline shows the past (the past cannot change).
   void setSettings(int i, const SolverSettings& settings);
+  // A recorded session: one panel per recording's panel (`frames`, per panel), from its start.
+  // Throws PanelError.
+  void setRecorded(std::shared_ptr<const Scene> scene, const std::vector<PanelSetup>& panels,
+                   std::vector<std::vector<Snapshot>> frames);
+  bool recorded() const { return !panels_.empty() && panels_[0]->recorded(); }
 
   const Look& look() const { return look_; }
   void setLook(const Look& look) { look_ = look; }
@@ -137,7 +201,8 @@ class RenderSession {
   Pick pick(int width, int height, double x, double y) const;
   // An impulse [N s] at `point` on `body` as panel `from` has it, applied to every panel that has
   // not diverged at the same point of the body's frame, so that panels stay comparable. Throws
-  // std::invalid_argument for a static body or a non-finite impulse.
+  // std::invalid_argument for a static body or a non-finite impulse, while the timeline shows the
+  // past, or for a recording.
   void push(int from, int body, const Vec3& impulse, const Vec3& point);
 
   // Panel i's draw list: its camera, the HUD (a lone panel: scene, settings, time; one of a grid:
@@ -149,9 +214,12 @@ class RenderSession {
   Image frame(GlRenderer& renderer) const;
 
  private:
+  void hookPanel(int i);  // the snapshot hook into panel i, called for what it has kept
   std::shared_ptr<const Scene> scene_;
   std::vector<std::unique_ptr<Panel>> panels_;
   Look look_;
+  HistoryLimits limits_{0, size_t{1} << 30};  // the newest only, unless asked (a video needs no past)
+  SnapshotHook hook_;
 };
 
 // The views of a frame: one list filling it, or the gridLayout() panels.

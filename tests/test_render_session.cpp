@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <thread>
@@ -297,4 +298,151 @@ TEST(RenderSession, SetSceneReplacesSceneAndPanels) {
   EXPECT_THROW(s.setScene(std::make_shared<const Scene>(bad), {{settings(Algorithm::A2), ""}}), PanelError);
   EXPECT_EQ(s.panelCount(), 2);
   EXPECT_EQ(s.scene().model.joints.size(), 30u);
+}
+
+namespace {
+
+bool sameBits(const State& a, const State& b) {
+  if (a.step != b.step || a.time != b.time || a.bodies.size() != b.bodies.size()) return false;
+  // Field by field: a BodyState has padding.
+  auto same = [](const double* x, const double* y, size_t n) { return std::memcmp(x, y, n * sizeof(double)) == 0; };
+  for (size_t i = 0; i < a.bodies.size(); ++i) {
+    const BodyState &p = a.bodies[i], &q = b.bodies[i];
+    if (!same(p.x.data(), q.x.data(), 3) || !same(p.q.coeffs().data(), q.q.coeffs().data(), 4) ||
+        !same(p.v.data(), q.v.data(), 3) || !same(p.w.data(), q.w.data(), 3))
+      return false;
+  }
+  return true;
+}
+
+// The states of an uninterrupted run of the scene, from step 0.
+std::vector<State> trajectory(const Scene& scene, const SolverSettings& s, int steps) {
+  World w(scene.model, s, scene.initial);
+  std::vector<State> out{w.state()};
+  for (int k = 0; k < steps; ++k) {
+    w.step();
+    out.push_back(w.state());
+  }
+  return out;
+}
+
+}  // namespace
+
+// The timeline: a kept step is shown as it was (bit for bit), without stepping again; going back and
+// forth never changes the world.
+TEST(RenderSession, ScrubbingShowsKeptStepsWithoutSteppingAgain) {
+  const auto scene = sceneFile("ragdoll_pile.json");
+  const SolverSettings a5 = settings(Algorithm::A5);
+  const std::vector<State> ref = trajectory(*scene, a5, 90);
+  RenderSession s(scene, {{a5, ""}});
+  s.setHistoryLimits({60, size_t{1} << 30});
+  s.advanceTo(90 / 60.0);
+  ASSERT_EQ(s.panel(0).steps(), 90);
+  EXPECT_TRUE(s.live());
+  s.view(0.5);
+  EXPECT_FALSE(s.live());
+  EXPECT_EQ(s.panel(0).state().step, 30);
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[30]));
+  s.viewBy(-7);
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[23]));
+  s.viewBy(2);
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[25]));
+  s.view(-5);  // before the first: the first
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[0]));
+  EXPECT_EQ(s.panel(0).steps(), 90);  // nothing stepped again
+  EXPECT_TRUE(sameBits(s.panel(0).world().state(), ref[90]));
+  // Contacts of a past step are the ones of that step.
+  s.view(1.0);
+  EXPECT_EQ(s.panel(0).shown().state.step, 60);
+  s.viewLive();
+  EXPECT_TRUE(s.live());
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[90]));
+}
+
+// Play resumed from a step scrubbed back to goes through the kept steps, then steps on: the same
+// trajectory as a run that never went back.
+TEST(RenderSession, ResumingFromAPastStepGivesTheUninterruptedTrajectory) {
+  const auto scene = sceneFile("ragdoll_pile.json");
+  const SolverSettings a5 = settings(Algorithm::A5);
+  const std::vector<State> ref = trajectory(*scene, a5, 150);
+  RenderSession s(scene, {{a5, ""}, {settings(Algorithm::A2), "a2"}});
+  s.setHistoryLimits({60, size_t{1} << 30});
+  s.advanceTo(1.0);
+  s.view(0.25);
+  s.step();  // one step forward in the past: the kept step 16
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[16]));
+  EXPECT_EQ(s.panel(0).steps(), 60);
+  s.advanceTo(150 / 60.0);
+  EXPECT_TRUE(s.live());
+  EXPECT_EQ(s.panel(0).steps(), 150);
+  for (int k : {40, 60, 61, 100, 150}) {
+    s.view(k / 60.0);
+    EXPECT_TRUE(sameBits(s.panel(0).state(), ref[static_cast<size_t>(k)])) << "step " << k;
+  }
+}
+
+// The past cannot be changed: a push or a settings change while it is shown is refused and says how
+// to go on; at the newest step both work.
+TEST(RenderSession, ThePastRefusesChanges) {
+  RenderSession s(sceneFile("stack.json"), {{settings(Algorithm::A2), ""}});
+  s.setHistoryLimits({60, size_t{1} << 30});
+  s.advanceTo(0.5);
+  s.view(0.25);
+  const int top = static_cast<int>(s.scene().model.bodies.size()) - 1;
+  try {
+    s.push(0, top, Vec3(1, 0, 0), s.panel(0).state().bodies[static_cast<size_t>(top)].x);
+    FAIL() << "a push in the past went through";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("go live first"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(s.setSettings(0, settings(Algorithm::A3)), std::invalid_argument);
+  s.viewLive();
+  s.push(0, top, Vec3(1, 0, 0), s.panel(0).state().bodies[static_cast<size_t>(top)].x);
+  s.setSettings(0, settings(Algorithm::A3));
+}
+
+// The history keeps the last seconds asked for (and the newest step whatever it costs); a session
+// with no history asked for keeps the newest only.
+TEST(RenderSession, HistoryKeepsTheLastSecondsAskedFor) {
+  RenderSession s(sceneFile("stack.json"), {{settings(Algorithm::A2), ""}});
+  s.advanceTo(1.0);
+  EXPECT_EQ(s.panel(0).history().size(), 1u);
+  s.setHistoryLimits({0.5, size_t{1} << 30});
+  s.advanceTo(2.0);
+  EXPECT_NEAR(s.firstKept(), 1.5, 1e-9);
+  EXPECT_NEAR(s.lastKept(), 2.0, 1e-9);
+  EXPECT_EQ(s.panel(0).history().size(), 31u);
+  s.view(0.2);  // older than kept: the oldest kept
+  EXPECT_NEAR(s.time(), 1.5, 1e-9);
+  s.setHistoryLimits({60, 1});  // one byte: the newest only
+  EXPECT_EQ(s.panel(0).history().size(), 1u);
+  EXPECT_TRUE(s.live());
+}
+
+// A recorded session shows its frames and never steps: it ends at its last frame; the snapshot hook
+// sees every frame once.
+TEST(RenderSession, ARecordedSessionReplaysItsFramesAndEnds) {
+  const auto scene = sceneFile("stack.json");
+  const SolverSettings a2 = settings(Algorithm::A2);
+  const std::vector<State> ref = trajectory(*scene, a2, 40);
+  std::vector<Snapshot> frames;
+  for (size_t k = 0; k < ref.size(); k += 4) frames.push_back(takeSnapshot(scene->model, ref[k]));
+  RenderSession s(scene, {{a2, ""}});
+  int hooked = 0;
+  s.setSnapshotHook([&](int panel, const std::shared_ptr<const Scene>&, const Snapshot&) { hooked += panel == 0; });
+  const int before = hooked;
+  s.setRecorded(scene, {{a2, ""}}, {frames});
+  EXPECT_EQ(hooked - before, static_cast<int>(frames.size()));
+  EXPECT_TRUE(s.recorded());
+  EXPECT_EQ(s.time(), 0);
+  s.advanceTo(0.3);  // step 18: the frame of step 16
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[16]));
+  s.advanceTo(10);
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[40]));
+  EXPECT_TRUE(s.ended());
+  EXPECT_EQ(s.panel(0).steps(), 0);
+  EXPECT_EQ(s.panel(0).world().state().step, 0);
+  EXPECT_THROW(s.push(0, 1, Vec3(1, 0, 0), Vec3::Zero()), std::invalid_argument);
+  s.viewBy(-1);
+  EXPECT_TRUE(sameBits(s.panel(0).state(), ref[36]));
 }

@@ -725,3 +725,80 @@ TEST(Server, CommandLine) {
   EXPECT_EQ(busy.status, 1);
   EXPECT_NE(busy.output.find("cannot listen on 127.0.0.1:" + std::to_string(srv.port())), std::string::npos) << busy.output;
 }
+
+// The timeline: kept steps shown at once (no stepping again), step back, play backwards, live; the
+// past refuses a push; markers; the inspector of a selected body and "jump to worst".
+TEST(Server, TimelineScrubSelectInspectAndWorst) {
+  ServerProcess srv(small());
+  auto c = srv.client();
+  const std::string id = create(*c, {{"scene", "pile"}, {"methods", "a2,a5"}});
+  const std::string s = "/api/sessions/" + id;
+  ASSERT_EQ(post(*c, s + "/step", {{"count", 90}}).status, 200);
+  Answer tl = call(*c, "GET", s + "/timeline");
+  ASSERT_EQ(tl.status, 200) << tl.text;
+  EXPECT_EQ(tl.body["first"], 0);
+  EXPECT_NEAR(tl.body["last"].get<double>(), 1.5, 1e-9);
+  EXPECT_EQ(tl.body["live"], true);
+  EXPECT_EQ(tl.body["kept"], 91);
+  bool penetration = false;
+  for (const json& m : tl.body["markers"]) penetration = penetration || m["kind"] == "penetration";
+  EXPECT_TRUE(penetration) << tl.text;
+
+  // Body "box_0" at the newest step, then at step 30.
+  const Answer selected = post(*c, s + "/select", {{"body", "box_0"}});
+  ASSERT_EQ(selected.status, 200) << selected.text;
+  ASSERT_EQ(selected.body["panels"].size(), 2u);
+  const json liveBox = selected.body["panels"][0];
+  EXPECT_EQ(liveBox["step"], 90);
+  Answer scrubbed = post(*c, s + "/scrub", {{"time", 0.5}});
+  ASSERT_EQ(scrubbed.status, 200) << scrubbed.text;
+  EXPECT_EQ(scrubbed.body["timeline"]["live"], false);
+  EXPECT_EQ(scrubbed.body["timeline"]["shown_step"], 30);
+  EXPECT_EQ(scrubbed.body["selected"], "box_0");
+  const json st = stats(*c, id);
+  EXPECT_EQ(st["panels"][0]["steps"], 90);  // nothing stepped again
+  EXPECT_EQ(st["shown_step"], 30);
+  const Answer past = call(*c, "GET", s + "/inspect");
+  ASSERT_EQ(past.status, 200) << past.text;
+  EXPECT_EQ(past.body["body"], "box_0");
+  EXPECT_EQ(past.body["panels"][0]["step"], 30);
+  EXPECT_NE(past.body["panels"][0]["position"], liveBox["position"]);  // it was falling then
+  EXPECT_EQ(post(*c, s + "/scrub", {{"by", -5}}).body["timeline"]["shown_step"], 25);
+  EXPECT_EQ(post(*c, s + "/step", {{"count", -2}}).body["timeline"]["shown_step"], 23);
+  EXPECT_EQ(post(*c, s + "/step", {{"count", 3}}).body["timeline"]["shown_step"], 26);  // forward through the kept steps
+  EXPECT_EQ(stats(*c, id)["panels"][0]["steps"], 90);
+
+  // The past cannot be pushed: 409, saying how to go on.
+  const Answer push = post(*c, s + "/push", {{"body", "box_0"}, {"impulse", {0, 3, 0}}});
+  EXPECT_EQ(push.status, 409) << push.text;
+  EXPECT_NE(push.text.find("go live first"), std::string::npos) << push.text;
+
+  // Backwards to the first kept step, where it pauses.
+  ASSERT_EQ(post(*c, s + "/play", {{"speed", -2}}).status, 200);
+  const json back = waitStats(*c, id, [](const json& j) { return !j["playing"].get<bool>(); });
+  EXPECT_EQ(back["shown_step"], 0);
+  EXPECT_NE(back["status"].get<std::string>().find("first kept step"), std::string::npos) << back.dump();
+
+  // The worst penetration so far: shown at its step, its body selected.
+  const Answer worst = post(*c, s + "/worst", {{"kind", "penetration"}});
+  ASSERT_EQ(worst.status, 200) << worst.text;
+  const json& m = worst.body["marker"];
+  EXPECT_EQ(m["kind"], "penetration");
+  ASSERT_TRUE(m["body"].is_string()) << worst.text;
+  EXPECT_EQ(worst.body["inspect"]["body"], m["body"]);
+  const Answer after = call(*c, "GET", s);
+  EXPECT_DOUBLE_EQ(after.body["timeline"]["shown"].get<double>(), m["time"].get<double>());
+  EXPECT_EQ(after.body["selected"], m["body"]);
+  double deepest = 0;
+  for (const json& k : worst.body["inspect"]["panels"][m["panel"].get<int>()]["contacts"])
+    deepest = std::max(deepest, k["depth"].get<double>());
+  EXPECT_DOUBLE_EQ(deepest, m["value"].get<double>());  // the marker's number is the inspector's
+  EXPECT_EQ(post(*c, s + "/worst", {{"kind", "nope"}}).status, 400);
+
+  // Live again: the newest step, and a push works.
+  EXPECT_EQ(post(*c, s + "/scrub", {{"live", true}}).body["timeline"]["shown_step"], 90);
+  EXPECT_EQ(post(*c, s + "/push", {{"body", "box_0"}, {"impulse", {0, 3, 0}}}).status, 200);
+  EXPECT_EQ(post(*c, s + "/scrub", json::object()).status, 400);
+  EXPECT_EQ(post(*c, s + "/select", {{"body", "nobody"}}).status, 400);
+  EXPECT_EQ(post(*c, s + "/select", {{"body", nullptr}}).body["body"], nullptr);
+}

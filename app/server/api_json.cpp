@@ -83,6 +83,8 @@ json stateJson(WebSession& s) {
       if (!b.isStatic) bodies.push_back(b.name);
     return json{{"panels", panels},
                 {"time", r.panel(0).state().time},
+                {"timeline", timelineJson(r)},
+                {"selected", s.selected >= 0 ? json(s.scene->model.bodies[static_cast<size_t>(s.selected)].name) : json(nullptr)},
                 {"camera",
                  {{"preset", c.name},
                   {"yaw", c.yaw},
@@ -142,11 +144,14 @@ json statsJson(const LiveStats& s) {
                       {"kinetic", p.kinetic},
                       {"potential", p.potential},
                       {"diverged", p.diverged},
+                      {"ended", p.ended},
                       {"problem", p.problem}});
   return {{"seq", s.seq},          {"frames", s.frames},   {"playing", s.playing},     {"seeking", s.seeking},
           {"speed", s.speed},      {"achieved", s.achieved}, {"behind", s.behind},     {"fps", s.fps},
           {"physics_ms", s.physicsMs}, {"draw_ms", s.drawMs}, {"encode_ms", s.encodeMs}, {"jpeg_bytes", s.jpegBytes},
-          {"status", s.status},    {"panels", panels}};
+          {"status", s.status},    {"panels", panels},
+          {"first", s.first},      {"last", s.last},       {"shown", s.shown},         {"shown_step", s.shownStep},
+          {"live", s.live},        {"recorded", s.recorded}};
 }
 
 json clipJson(const ClipInfo& c, const std::string& sessionId) {

@@ -118,6 +118,7 @@ void Handlers::create(const Request& req, Response& res) {
   Look look;
   look.camera = chooseCamera(*s->scene, {});
   look.stepCost = true;
+  s->timeline = std::make_shared<SessionTimeline>();
   sessions_.open(s, setups(*s->scene, s->panels), look, c, play ? std::optional<double>(speed) : std::nullopt);
   sendJson(res, stateJson(*s), 201);
 }
@@ -205,7 +206,14 @@ void Handlers::view(WebSession& s, const Request& req) {
 
 void Handlers::play(WebSession& s, const Request& req) {
   const Fields f(req, {"speed"});
-  s.live->play(f.has("speed") ? f.number("speed", {0.01, 10}) : s.live->stats().speed);
+  double speed = s.live->stats().speed;
+  if (f.has("speed")) {
+    speed = f.number("speed", {-10, 10});
+    if (std::abs(speed) < 0.01)
+      throw HttpError(400, "speed: expected 0.01 to 10 simulated seconds per second (negative: backwards), got " +
+                               numberText(speed));
+  }
+  s.live->play(speed);
 }
 
 void Handlers::pause(WebSession& s, const Request& req) {
@@ -215,7 +223,9 @@ void Handlers::pause(WebSession& s, const Request& req) {
 
 void Handlers::step(WebSession& s, const Request& req) {
   const Fields f(req, {"count"});
-  s.live->step(f.has("count") ? f.integer("count", {1, kMaxSteps}) : 1);
+  const int count = f.has("count") ? f.integer("count", {-kMaxSteps, kMaxSteps}) : 1;
+  if (count == 0) throw HttpError(400, "count: expected 1 to " + std::to_string(kMaxSteps) + " steps, negative to go back");
+  s.live->step(count);
 }
 
 void Handlers::reset(WebSession& s, const Request& req) {
@@ -227,6 +237,108 @@ void Handlers::seek(WebSession& s, const Request& req) {
   const Fields f(req, {"time"});
   if (!f.has("time")) throw HttpError(400, "time: expected a number in [0, " + numberText(kMaxSeek) + "]");
   s.live->seek(f.number("time", {0, kMaxSeek}));
+}
+
+void Handlers::scrub(WebSession& s, const Request& req) {
+  const Fields f(req, {"time", "by", "live"});
+  const int given = f.has("time") + f.has("by") + f.has("live");
+  if (given != 1) throw HttpError(400, "time, by, live: give one (a time in s, a number of kept steps, or live: true)");
+  if (f.has("time")) {
+    s.live->seek(f.number("time", {0, kMaxSeek}));
+  } else if (f.has("by")) {
+    s.live->step(f.integer("by", {-1000000000, 1000000000}));
+  } else {
+    if (!f.flag("live")) throw HttpError(400, "live: expected true (to show the newest step)");
+    s.live->live();
+  }
+}
+
+// --- the timeline and the inspector ---
+
+namespace {
+
+std::vector<std::string> methodsOf(const WebSession& s) {
+  std::vector<std::string> m;
+  for (const auto& p : s.panels) m.push_back(p.user.specText());
+  return m;
+}
+
+// Selects body b (-1: none), highlighted in every panel; answers the inspector. Under s.m.
+json selectBody(WebSession& s, int b) {
+  s.selected = b;
+  return s.live->change([&](RenderSession& r, Look& look) {
+    look.view.highlight.clear();
+    if (b >= 0) look.view.highlight.push_back(s.scene->model.bodies[static_cast<size_t>(b)].name);
+    return inspectJson(r, methodsOf(s), b);
+  });
+}
+
+int bodyNamed(const WebSession& s, const std::string& name, const std::string& field) {
+  const int b = s.scene->model.bodyIndex(name);
+  if (b < 0) throw HttpError(400, field + ": expected the name of a body of " + s.sceneName + ", got " + quote(json(name)));
+  return b;
+}
+
+}  // namespace
+
+void Handlers::timeline(const Request& req, Response& res) {
+  const auto s = session(req);
+  std::lock_guard<std::mutex> lk(s->m);
+  sendJson(res, s->live->read([&](const RenderSession& r, const Look&) {
+    json j = timelineJson(r);
+    j["markers"] = s->timeline->markersJson(r);
+    return j;
+  }));
+}
+
+void Handlers::select(const Request& req, Response& res) {
+  const auto s = session(req);
+  const Fields f(req, {"x", "y", "body"});
+  std::lock_guard<std::mutex> lk(s->m);
+  if (f.has("body")) {
+    if (f.has("x") || f.has("y")) throw HttpError(400, "body: give a body, or x and y, not both");
+    if (f.at("body").is_null()) return sendJson(res, selectBody(*s, -1));
+    return sendJson(res, selectBody(*s, bodyNamed(*s, f.text("body", limits::kMaxNameLength), "body")));
+  }
+  const int w = s->live->config().width, h = s->live->config().height;
+  const auto xy = pixel(f, w, h);
+  const RenderSession::Pick p =
+      s->live->read([&](const RenderSession& r, const Look&) { return r.pick(w, h, xy.first, xy.second); });
+  json j = selectBody(*s, p.hit.body);
+  j["pick"] = pickJson(p, *s->scene);
+  sendJson(res, j);
+}
+
+void Handlers::inspect(const Request& req, Response& res) {
+  const auto s = session(req);
+  std::lock_guard<std::mutex> lk(s->m);
+  int b = s->selected;
+  if (req.has_param("body")) b = bodyNamed(*s, req.get_param_value("body").substr(0, limits::kMaxNameLength), "body");
+  sendJson(res, s->live->read([&](const RenderSession& r, const Look&) { return inspectJson(r, methodsOf(*s), b); }));
+}
+
+void Handlers::worst(const Request& req, Response& res) {
+  const auto s = session(req);
+  const Fields f(req, {"kind", "panel"});
+  const std::string kind = f.has("kind") ? f.text("kind", 20) : "penetration";
+  if (kind != "penetration" && kind != "joint_error" && kind != "speed")
+    throw HttpError(400, "kind: expected penetration, joint_error or speed, got " + quote(json(kind)));
+  std::lock_guard<std::mutex> lk(s->m);
+  const int panel = f.has("panel") ? f.integer("panel", {0, static_cast<int>(s->panels.size()) - 1}) : -1;
+  const auto w = s->timeline->worst(kind, panel);
+  if (!w) throw HttpError(409, "no " + kind + " so far" + (panel >= 0 ? " in panel " + std::to_string(panel) : "") +
+                                   ": play the scene first");
+  s->live->seek(w->second.time);
+  json j;
+  j["marker"] = {{"panel", w->first},
+                 {"kind", w->second.kind},
+                 {"step", w->second.step},
+                 {"time", w->second.time},
+                 {"body", w->second.body >= 0 ? json(s->scene->model.bodies[static_cast<size_t>(w->second.body)].name) : json(nullptr)},
+                 {"value", w->second.value},
+                 {"text", w->second.text}};
+  j["inspect"] = selectBody(*s, w->second.body);
+  sendJson(res, j);
 }
 
 // --- picking and pushing ---
@@ -247,8 +359,10 @@ void Handlers::push(const Request& req, Response& res) {
   try {
     std::lock_guard<std::mutex> lk(s->m);
     sendJson(res, f.has("body") ? pushBody(*s, f) : pushAtPixel(*s, f));
-  } catch (const std::invalid_argument& e) {  // World::applyImpulse
-    throw HttpError(400, e.what());
+  } catch (const std::invalid_argument& e) {  // World::applyImpulse; the past or a recording (409)
+    const bool past = std::string(e.what()).find("go live first") != std::string::npos ||
+                      std::string(e.what()).find("recording") != std::string::npos;
+    throw HttpError(past ? 409 : 400, e.what());
   }
 }
 

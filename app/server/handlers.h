@@ -43,6 +43,13 @@ class Handlers {
   void step(WebSession& s, const Request& req);
   void reset(WebSession& s, const Request& req);
   void seek(WebSession& s, const Request& req);
+  void scrub(WebSession& s, const Request& req);
+
+  // The timeline, the inspector.
+  void timeline(const Request& req, Response& res);
+  void select(const Request& req, Response& res);
+  void inspect(const Request& req, Response& res);
+  void worst(const Request& req, Response& res);
 
   // Picking and pushing, answered with what the ray hit.
   void pick(const Request& req, Response& res);

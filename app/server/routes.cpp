@@ -46,6 +46,11 @@ void addRoutes(Router& router, Handlers& h) {
       {"POST", sid + "/step", change(&H::step)},
       {"POST", sid + "/reset", change(&H::reset)},
       {"POST", sid + "/seek", change(&H::seek)},
+      {"POST", sid + "/scrub", change(&H::scrub)},
+      {"GET", sid + "/timeline", answer(&H::timeline)},
+      {"POST", sid + "/select", answer(&H::select)},
+      {"GET", sid + "/inspect", answer(&H::inspect)},
+      {"POST", sid + "/worst", answer(&H::worst)},
       {"POST", sid + "/pick", answer(&H::pick)},
       {"POST", sid + "/push", answer(&H::push)},
 

@@ -77,6 +77,7 @@ LiveConfig Sessions::config() const {
   c.fps = o_.fps;
   c.jpegQuality = o_.jpegQuality;
   c.historySeconds = o_.history;
+  c.timeline = {o_.timelineSeconds, static_cast<size_t>(o_.timelineMb) << 20};
   c.ffmpeg = ffmpeg_;
   c.drawGate = drawGate_;
   c.encodeGate = encodeGate_;
@@ -84,7 +85,7 @@ LiveConfig Sessions::config() const {
 }
 
 void Sessions::open(const std::shared_ptr<WebSession>& s, const std::vector<PanelSetup>& panels, const Look& look,
-                    LiveConfig config, std::optional<double> play) {
+                    LiveConfig config, std::optional<double> play, const Prepare& prepare) {
   std::lock_guard<std::mutex> lk(m_);
   if (stopping_) throw HttpError(503, "the server is stopping");
   if (static_cast<int>(sessions_.size()) >= o_.maxSessions)
@@ -102,6 +103,16 @@ void Sessions::open(const std::shared_ptr<WebSession>& s, const std::vector<Pane
     s->live = std::make_unique<LiveSession>(s->scene, panels, look, config);
   } catch (const render::PanelError& e) {
     throw HttpError(400, e.what());
+  }
+  if (!s->timeline) s->timeline = std::make_shared<SessionTimeline>();
+  s->live->change([&](render::RenderSession& r, Look&) { r.setSnapshotHook(s->timeline->hook()); });
+  if (prepare) {
+    try {
+      s->live->restart([&](render::RenderSession& r, Look& look) { prepare(r, look); });
+    } catch (const render::PanelError& e) {
+      s->live->close();
+      throw HttpError(400, e.what());
+    }
   }
   if (play) s->live->play(*play);
   sessions_[s->id] = s;

@@ -7,10 +7,12 @@
 
 #include "app/server.h"
 #include "app/server/http.h"
+#include "app/server/inspect.h"
 #include "render/live_session.h"
 
 #include <atomic>
 #include <condition_variable>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -38,6 +40,8 @@ struct WebSession {
   std::shared_ptr<const Scene> scene;
   std::vector<PanelState> panels;
   std::string clipFolder;
+  int selected = -1;                          // the inspected body (highlighted), -1 for none
+  std::shared_ptr<SessionTimeline> timeline;  // before `live`: its hook runs while `live` does
   std::unique_ptr<LiveSession> live;
 };
 
@@ -62,8 +66,10 @@ class Sessions {
 
   // Gives `s` an id and a clip folder, starts its live session (playing at `play` if given) and
   // registers it. HttpError 503 when stopping or at the limit, 400 for a panel that cannot start.
+  // `prepare`, when given, changes the render session before it plays (a recording's frames).
+  using Prepare = std::function<void(render::RenderSession&, Look&)>;
   void open(const std::shared_ptr<WebSession>& s, const std::vector<PanelSetup>& panels, const Look& look,
-            LiveConfig config, std::optional<double> play);
+            LiveConfig config, std::optional<double> play, const Prepare& prepare = {});
   // The open session `id`, marked as used now; HttpError 404 if none.
   std::shared_ptr<WebSession> find(const std::string& id);
   bool isOpen(const std::string& id) const;
