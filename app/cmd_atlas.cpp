@@ -39,6 +39,7 @@ struct AtlasOptions {
   std::string size = "960x540";
   std::string expected, writeExpected;
   int repeat = 1;
+  std::string record;  // a folder for a recording of every cell's run, "" for none
   bool quiet = false;
 };
 
@@ -374,6 +375,7 @@ void checkOutputs(const AtlasOptions& o) {
   checkWritable((dir / "index.html").string(), "-o " + o.output);
   if (!o.noClips) checkWritable((dir / "clips" / "x.mp4").string(), "-o " + o.output);
   if (!o.writeExpected.empty()) checkWritable(o.writeExpected, "--write-expected");
+  if (!o.record.empty()) checkWritable((fs::path(o.record) / "x.rec").string(), "--record " + o.record);
 }
 
 AtlasPlan planAtlas(const AtlasOptions& o) {
@@ -394,11 +396,12 @@ AtlasPlan planAtlas(const AtlasOptions& o) {
 // The scene under every method, each cell's record added to `rows`.
 void runSceneCells(SceneResult& r, const AtlasPlan& plan, const AtlasOptions& o, std::vector<json>& rows, Progress& progress) {
   try {
-    r.cells = lab::runAtlasScene(r.scene, plan.methods, o.noClips ? 0 : o.fps, o.repeat);
+    r.cells = lab::runAtlasScene(r.scene, plan.methods, o.noClips ? 0 : o.fps, o.repeat, o.record);
   } catch (const lab::ReferenceError& e) {
     throw UsageError(r.scene.file + ": criteria.reference: " + e.what());
   }
-  for (const lab::AtlasCell& c : r.cells) {
+  for (lab::AtlasCell& c : r.cells) {
+    if (!c.run.recording.empty()) c.run.recording = relativePath(c.run.recording, o.output);  // as the page links it
     rows.push_back(lab::recordJson(r.scene, c.run, r.scene.criteria->seconds, o.repeat));
     progress.update(static_cast<long long>(rows.size()));
   }
@@ -467,6 +470,7 @@ json cellJson(const SceneResult& r, size_t i) {
           {"ms_per_step", c.run.refused ? json(nullptr) : json(c.run.cost.msPerStep)},
           {"wall_seconds", c.wallSeconds},
           {"clip", r.clips[i].empty() ? json(nullptr) : json("clips/" + r.clips[i])},
+          {"recording", c.run.recording.empty() ? json(nullptr) : json(c.run.recording)},
           {"panel", r.panels[i]}};
 }
 
@@ -517,6 +521,7 @@ void printSummary(const AtlasPlan& plan, const AtlasOptions& o, const AtlasTimes
             << " s\nwrote     " << (plan.dir / "index.html").string() << ", atlas.json, atlas.jsonl, atlas.md"
             << (o.noClips ? "" : ", clips/") << (charts ? ", charts/" : "") << "\n";
   if (!o.writeExpected.empty()) std::cout << "wrote     " << o.writeExpected << "\n";
+  if (!o.record.empty()) std::cout << "wrote     a recording of every run in " << o.record << "\n";
 }
 
 int runAtlas(const AtlasOptions& o) {
@@ -555,6 +560,9 @@ void addAtlasCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--repeat", opt->repeat, "Timed runs of each cell; the cost is their median (default 1)")->check(CLI::Range(1, 100));
   cmd->add_option("--expected", opt->expected, "Mark cells whose verdict differs from this table (e.g. tests/data/atlas_expected.json)");
   cmd->add_option("--write-expected", opt->writeExpected, "Write the measured verdicts as an expected table to this file");
+  cmd->add_option("--record", opt->record,
+                  "Write a recording of every cell's run into this folder (<scene>-<method>.rec; atlas.json and "
+                  "atlas.jsonl name each as \"recording\", relative to -o; docs/recordings.md)");
   cmd->add_flag("--quiet,-q", opt->quiet, "Print nothing but errors");
   cmd->callback([opt, &action] { action = [opt] { return runAtlas(*opt); }; });
 }

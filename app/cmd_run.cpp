@@ -1,10 +1,12 @@
-// substep run: steps a scene and writes what happened (trajectory CSV, metrics JSON, a summary).
+// substep run: steps a scene and writes what happened (trajectory CSV, metrics JSON, a recording,
+// a summary).
 // The stepping is the run driver's (physics/run.h); this file says what to watch and presents it.
 #include "app/commands.h"
 #include "app/common.h"
 #include "app/run_observers.h"
 #include "lab/record.h"
 #include "physics/failure.h"
+#include "physics/recording.h"
 #include "physics/settings_json.h"
 #include "physics/state_hash.h"
 #include "physics/world.h"
@@ -26,7 +28,7 @@ struct RunOptions {
   SolverOptions solver;
   std::optional<long long> steps;
   std::optional<double> seconds;
-  std::optional<std::string> trajectory, metrics;
+  std::optional<std::string> trajectory, metrics, record;
   long long every = 1;
   bool quiet = false;
   SceneLimits limits;
@@ -161,21 +163,28 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
                    ->check(finiteIn(1e-9, 1e7));
   steps->excludes(secs);
   cmd->add_option("--trajectory", opt->trajectory, "Write every body's state to this CSV file");
-  cmd->add_option("--every", opt->every, "Keep every K-th step in the trajectory and metrics (first and last always)")
+  cmd->add_option("--every", opt->every,
+                  "Keep every K-th step in the trajectory, metrics and recording (the first and last always)")
       ->check(CLI::Range(1LL, 1000000000LL));
   cmd->add_option("--metrics", opt->metrics,
                   "Write stage times, constraint violation, energies and what re-runs it (substep rerun) to this JSON "
                   "file");
+  cmd->add_option("--record", opt->record,
+                  "Write a recording (every body, contact and joint at the kept steps; docs/recordings.md) to this file, "
+                  "e.g. out/x.rec");
   cmd->add_flag("--quiet,-q", opt->quiet, "Print nothing but errors (no progress bar either)");
   addMaxBodies(*cmd, opt->limits);
   cmd->callback([opt, &action] {
     action = [opt] {
-      for (const auto* o : {&opt->trajectory, &opt->metrics})
-        if (*o && (*o)->empty())
-          throw UsageError(std::string(o == &opt->trajectory ? "--trajectory" : "--metrics") +
-                           ": expected a file name, got an empty one");
-      if (opt->trajectory && opt->metrics && samePath(*opt->trajectory, *opt->metrics))
-        throw UsageError("--trajectory and --metrics name the same file " + *opt->metrics + "; give each its own");
+      const std::pair<const std::optional<std::string>*, const char*> outputs[] = {
+          {&opt->trajectory, "--trajectory"}, {&opt->metrics, "--metrics"}, {&opt->record, "--record"}};
+      for (const auto& [o, name] : outputs)
+        if (*o && (*o)->empty()) throw UsageError(std::string(name) + ": expected a file name, got an empty one");
+      for (size_t i = 0; i < 3; ++i)
+        for (size_t k = i + 1; k < 3; ++k)
+          if (*outputs[i].first && *outputs[k].first && samePath(**outputs[i].first, **outputs[k].first))
+            throw UsageError(std::string(outputs[i].second) + " and " + outputs[k].second + " name the same file " +
+                             **outputs[k].first + "; give each its own");
       const Scene scene = load(opt->scene, opt->limits);
       const SolverSettings settings = resolveSettings(scene, opt->solver.overrides());
       const long long planned =
@@ -183,6 +192,15 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       std::unique_ptr<AtomicFile> traj, metrics;
       if (opt->trajectory) traj = std::make_unique<AtomicFile>(*opt->trajectory);
       if (opt->metrics) metrics = std::make_unique<AtomicFile>(*opt->metrics);
+      std::optional<RecordingWriter> recording;
+      if (opt->record) {
+        checkWritable(*opt->record, "--record " + *opt->record);
+        try {
+          recording.emplace(*opt->record, lab::recordingMeta(scene, {{"", settingsJson(settings), "", false}}, opt->every, planned));
+        } catch (const RecordingError& e) {
+          throw UsageError(std::string("--record: ") + e.what());
+        }
+      }
 
       std::unique_ptr<World> world;
       try {
@@ -203,6 +221,8 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       if (traj) csv.emplace(traj->out(), scene.model, opt->every, planned);
       run.add(summary).add(hashes).add(bar);
       if (csv) run.add(*csv);
+      std::optional<RecordingObserver> recorder;
+      if (recording) run.add(recorder.emplace(*recording, scene.model, 0, opt->every, planned));
       const RunOutcome& o = run.run();
 
       if (o.end == RunOutcome::End::Stopped) {  // the bar's: Ctrl-C; the AtomicFiles remove their temporaries
@@ -218,10 +238,14 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
         metrics->commit();
       }
       if (traj) traj->commit();
+      if (recording) recording->commit();
       if (!opt->quiet) {
         printSummary(scene, *world, summary, o);
         if (traj) std::cout << "wrote     " << *opt->trajectory << "\n";
         if (metrics) std::cout << "wrote     " << *opt->metrics << " (substep rerun " << *opt->metrics << " runs it again)\n";
+        if (recording)
+          std::cout << "wrote     " << *opt->record << " (" << recording->frames() << " frames, " << std::setprecision(2)
+                    << recording->bytes() / 1e6 << " MB)\n";
       }
       if (o.end == RunOutcome::End::Diverged) {
         std::cerr << "substep run: stopped: " << o.message << "; outputs hold the steps before it\n";

@@ -28,6 +28,7 @@ struct SweepOptions {
   std::optional<double> seconds;
   std::string output;
   std::string shard;
+  std::string record;  // a folder for a recording of every run, "" for none
   bool quiet = false;
   SceneLimits limits;
 };
@@ -205,8 +206,10 @@ const lab::PreparedReference* referenceFor(const Scene& scene, double seconds, s
   return ref ? &*ref : nullptr;
 }
 
-lab::RunResult runPlanned(const lab::PlannedRun& run, const Scene& scene, int repeat, const lab::PreparedReference* reference) {
+lab::RunResult runPlanned(const lab::PlannedRun& run, const Scene& scene, int repeat, const lab::PreparedReference* reference,
+                          const std::string& recording) {
   lab::RunSetup setup;
+  setup.recording = recording;
   setup.seconds = run.seconds;
   setup.repeat = repeat;
   setup.dt = run.dt;
@@ -224,8 +227,27 @@ void printRow(long long n, size_t total, const Scene& scene, const lab::PlannedR
             << std::flush;
 }
 
+// Each run's recording in `dir` (recordingFileName; the run's index added to a name two runs would share).
+std::vector<std::string> recordingPaths(const lab::SweepPlan& plan, const std::string& dir) {
+  std::vector<std::string> paths(plan.runs.size());
+  if (dir.empty()) return paths;
+  std::set<std::string> taken;
+  for (size_t k = 0; k < plan.runs.size(); ++k) {
+    const lab::PlannedRun& r = plan.runs[k];
+    std::string name = lab::recordingFileName(plan.scenes[r.scene], r.method.text, r.dt);
+    if (!taken.insert(name).second) {
+      name = name.substr(0, name.size() - 4) + "-" + std::to_string(k + 1) + ".rec";
+      taken.insert(name);
+    }
+    paths[k] = (fs::path(dir) / name).string();
+  }
+  return paths;
+}
+
 // Runs `todo`, a row each written as it ends; returns how many.
-long long runAll(const lab::SweepPlan& plan, const std::vector<size_t>& todo, int repeat, RowWriter& writer, bool quiet) {
+long long runAll(const lab::SweepPlan& plan, const std::vector<size_t>& todo, int repeat, RowWriter& writer, const SweepOptions& o) {
+  const bool quiet = o.quiet;
+  const std::vector<std::string> recordings = recordingPaths(plan, o.record);
   std::vector<std::optional<lab::PreparedReference>> references(plan.scenes.size());
   Progress progress("sweep", static_cast<long long>(todo.size()), !quiet);
   long long n = 0;
@@ -233,10 +255,12 @@ long long runAll(const lab::SweepPlan& plan, const std::vector<size_t>& todo, in
     if (InterruptGuard::interrupted()) throw Interrupted();
     const lab::PlannedRun& run = plan.runs[k];
     const Scene& scene = plan.scenes[run.scene];
-    const lab::RunResult result = runPlanned(run, scene, repeat, referenceFor(scene, run.seconds, references[run.scene]));
+    const lab::RunResult result =
+        runPlanned(run, scene, repeat, referenceFor(scene, run.seconds, references[run.scene]), recordings[k]);
     if (InterruptGuard::interrupted()) throw Interrupted();  // the run was cut: no row for it
-    const json row = lab::recordJson(scene, result, run.seconds, repeat,
-                                     lab::SweepPlace{plan.id, static_cast<long long>(k), static_cast<long long>(plan.runs.size())});
+    json row = lab::recordJson(scene, result, run.seconds, repeat,
+                               lab::SweepPlace{plan.id, static_cast<long long>(k), static_cast<long long>(plan.runs.size())});
+    if (!result.recording.empty()) row["recording"] = relativePath(result.recording, fs::path(o.output).parent_path().string());
     writer.write(row);
     ++n;
     if (!quiet) {
@@ -255,11 +279,14 @@ int runSweep(const SweepOptions& o) {
   const lab::SweepPlan plan = planRuns(spec);
   const std::set<std::string> done = resume(o.output);
   RowWriter writer(o.output);
+  if (!o.record.empty()) checkWritable((fs::path(o.record) / "x.rec").string(), "--record " + o.record);
   const ShardRuns runs = shardRuns(plan, shard, done);
   if (!o.quiet) printSweepHeader(o, spec, plan, shard, runs);
   InterruptGuard interrupt;
-  const long long n = runAll(plan, runs.todo, spec.repeat, writer, o.quiet);
-  if (!o.quiet) std::cout << "wrote     " << o.output << " (" << n << " new rows)\n";
+  const long long n = runAll(plan, runs.todo, spec.repeat, writer, o);
+  if (!o.quiet)
+    std::cout << "wrote     " << o.output << " (" << n << " new rows)" << (o.record.empty() ? "" : "; recordings in " + o.record)
+              << "\n";
   return 0;
 }
 
@@ -316,6 +343,9 @@ void addSweepCommand(CLI::App& app, std::function<int()>& action) {
       ->check(finiteIn(1e-3, 3600));
   cmd->add_option("-o,--output", opt->output, "The JSONL file the records are appended to")->required();
   cmd->add_option("--shard", opt->shard, "i/N: run only every N-th run of the plan, starting at the i-th (1 <= i <= N)");
+  cmd->add_option("--record", opt->record,
+                  "Write a recording of every run into this folder (<scene>-<method>.rec; each record names its own as "
+                  "\"recording\", relative to the output's folder; docs/recordings.md)");
   cmd->add_flag("--quiet,-q", opt->quiet, "Print nothing but errors (no progress bar either)");
   addMaxBodies(*cmd, opt->limits);
 

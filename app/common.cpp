@@ -112,6 +112,13 @@ std::string scenePath(const std::string& name) {
   return assetsDir() + "/scenes/" + name + ".json";
 }
 
+std::string relativePath(const std::string& path, const std::string& folder) {
+  std::error_code ec;
+  const fs::path base = fs::absolute(folder.empty() ? "." : folder, ec).lexically_normal();
+  const fs::path rel = fs::absolute(path, ec).lexically_normal().lexically_relative(base);
+  return rel.empty() ? path : rel.string();
+}
+
 bool samePath(const std::string& a, const std::string& b) {
   std::error_code ea, eb;
   if (fs::equivalent(a, b, ea)) return true;

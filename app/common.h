@@ -80,6 +80,9 @@ class AtomicFile {
 
 // Whether two paths name the same file (existing or not): "x.csv" and "./x.csv" do.
 bool samePath(const std::string& a, const std::string& b);
+// `path` relative to `folder` ("" for the current one), as a file in that folder links it:
+// ("out/recs/a.rec", "out") -> "recs/a.rec". Neither needs to exist.
+std::string relativePath(const std::string& path, const std::string& folder);
 
 // Makes sure the folder of `path` exists and a file can be created there (it creates and removes
 // `path`'s temporary name, so a folder that only looks writable, like /proc, is caught before any

@@ -55,6 +55,14 @@ CLI::Option* RenderOptions::add(CLI::App& cmd, const std::string& panelsFlags, c
   cmd.add_option("--highlight", highlight, "Bodies to draw with a glow (names, comma separated)")->delimiter(',');
   cmd.add_flag("--contacts", contacts, "Draw contact points and normals");
   cmd.add_flag("--joints", joints, "Draw joint anchors, arms and axes");
+  cmd.add_flag("--forces", forces,
+               "Draw contact impulses as arrows: normal impulse at each contact point (orange), friction impulse of "
+               "each touching pair (green); the legend gives the scale");
+  cmd.add_flag("--joint-errors", jointErrors, "Draw each joint's error as a red segment from its anchor on A to B's");
+  cmd.add_option("--force-scale", forceScale,
+                 "--forces: arrow length per impulse [m per N s]; 0 (the default): the heaviest body's weight over "
+                 "one step, m g dt, drawn as long as that body's radius")
+      ->check(finiteIn(0.0, 1e9));
   cmd.add_flag("--no-hud", noHud, "No text overlay");
   cmd.add_option("--aa", antiAliasing,
                  "Post-process anti-aliasing: fxaa (FXAA edge blend, the default) or none (the default with --samples)")
@@ -115,6 +123,9 @@ Look RenderOptions::look(const Scene& scene, bool stepCost) const {
   look.view.colour = colourMode();
   look.view.contacts = contacts;
   look.view.joints = joints;
+  look.view.forces = forces;
+  look.view.jointErrors = jointErrors;
+  look.view.forceScale = forceScale;
   look.view.hud = !noHud;
   look.view.highlight = highlight;
   look.view.speedScale = speedScale;

@@ -23,10 +23,10 @@ struct RenderOptions {
   std::optional<double> yaw, pitch, distance, fov;
   std::vector<double> target;
   std::vector<std::string> highlight;
-  double orbit = 0, speedScale = 5, errorScale = 0.01;
+  double orbit = 0, speedScale = 5, errorScale = 0.01, forceScale = 0;
   int samples = 1, shadowSize = 1024;
   std::optional<std::string> antiAliasing;  // --aa; default fxaa without multisampling, none with it
-  bool contacts = false, joints = false, noHud = false, quiet = false;
+  bool contacts = false, joints = false, forces = false, jointErrors = false, noHud = false, quiet = false;
   CLI::Option* panelsOption_ = nullptr;  // to tell "--compare ''" from no --compare
 
   // Adds the scene (positional), the solver options and the drawing options to `cmd`. The

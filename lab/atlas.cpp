@@ -1,5 +1,7 @@
 #include "lab/atlas.h"
 
+#include "lab/record.h"
+
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -22,7 +24,8 @@ std::vector<std::string> atlasScenes(const std::string& folder) {
   return out;
 }
 
-std::vector<AtlasCell> runAtlasScene(const Scene& scene, const std::vector<Method>& methods, double frameRate, int repeat) {
+std::vector<AtlasCell> runAtlasScene(const Scene& scene, const std::vector<Method>& methods, double frameRate, int repeat,
+                                     const std::string& recordDir) {
   const double seconds = scene.criteria ? scene.criteria->seconds : 3;
   std::optional<PreparedReference> reference;
   if (scene.criteria && scene.criteria->reference) reference = prepareReference(scene, *scene.criteria->reference, seconds);
@@ -33,6 +36,7 @@ std::vector<AtlasCell> runAtlasScene(const Scene& scene, const std::vector<Metho
     setup.frameRate = frameRate;
     setup.repeat = repeat;
     setup.reference = reference ? &*reference : nullptr;
+    if (!recordDir.empty()) setup.recording = (std::filesystem::path(recordDir) / recordingFileName(scene, m.text)).string();
     const auto t0 = std::chrono::steady_clock::now();
     AtlasCell c;
     c.run = runMethod(scene, m, setup);

@@ -25,10 +25,11 @@ struct AtlasCell {
   double wallSeconds = 0;  // the run's own wall time
 };
 
-// One scene under every method, in order. frameRate > 0 keeps states for clips. A reference
-// the scene states is prepared once (a converged run may refuse: ReferenceError).
+// One scene under every method, in order. frameRate > 0 keeps states for clips; a recordDir
+// gets a recording of every cell's run (recordingFileName). A reference the scene states is
+// prepared once (a converged run may refuse: ReferenceError).
 std::vector<AtlasCell> runAtlasScene(const Scene& scene, const std::vector<Method>& methods, double frameRate = 0,
-                                     int repeat = 1);
+                                     int repeat = 1, const std::string& recordDir = "");
 
 // The expected table (tests/data/atlas_expected.json): scene -> method -> "pass" / "fail" /
 // "refused". Reading it throws std::runtime_error naming the file.

@@ -1,11 +1,13 @@
 #include "lab/record.h"
 
 #include "lab/provenance.h"
+#include "physics/recording.h"
 #include "physics/settings_json.h"
 #include "physics/state_hash.h"
 
 #include <cstdio>
 
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 
@@ -128,6 +130,41 @@ void addReproduction(json& j, const Scene& scene, bool bullet, const json& setti
   j["state_hashes"] = hashesJson(hashes);
 }
 
+json recordingMeta(const Scene& scene, const std::vector<RecordingPanel>& panels, long long every, long long plannedSteps) {
+  std::error_code ec;
+  json j;
+  j["format"] = "substep-recording";
+  j["version"] = kRecordingVersion;
+  j["scene"] = {{"file", scene.file},
+                {"base_dir", std::filesystem::absolute(scene.baseDir.empty() ? "." : scene.baseDir, ec).lexically_normal().string()},
+                {"text", scene.text}};
+  j["bodies"] = scene.model.bodies.size();
+  j["joints"] = scene.model.joints.size();
+  json ps = json::array();
+  for (const RecordingPanel& p : panels) {
+    json x = {{"name", p.name}, {"settings", p.settings}, {"engine", p.bullet ? "bullet" : "substep"}};
+    if (!p.method.empty()) x["method"] = p.method;
+    ps.push_back(x);
+  }
+  j["panels"] = ps;
+  j["every"] = every;
+  j["planned_steps"] = plannedSteps;
+  j["created_utc"] = utcNow();
+  const RecordingPanel first = panels.empty() ? RecordingPanel{} : panels.front();
+  addReproduction(j, scene, first.bullet, first.settings, plannedSteps, 0, RunHashes{});
+  for (const char* k : {"steps_done", "state_hash", "state_hashes"}) j.erase(k);
+  return j;
+}
+
+std::string recordingFileName(const Scene& scene, const std::string& method, const std::optional<double>& dt) {
+  auto safe = [](std::string s) {
+    for (char& c : s)
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '=' && c != '_' && c != '-') c = '_';
+    return s;
+  };
+  return safe(sceneName(scene)) + "-" + safe(method) + (dt ? "-h" + safe(stepText(*dt)) : "") + ".rec";
+}
+
 std::string errorMetric(const Scene& scene) {
   if (scene.criteria && !scene.criteria->error.empty()) return scene.criteria->error;
   if (scene.criteria && !scene.criteria->pass.empty()) return scene.criteria->pass.front().first;
@@ -189,6 +226,7 @@ json recordJson(const Scene& scene, const RunResult& run, double seconds, int re
     j["verdict"] = {{"result", resultName(v.result)}, {"figure", v.figure}, {"checks", checks}};
   }
   if (place) j["sweep"] = {{"plan", place->plan}, {"index", place->index}, {"runs", place->runs}};
+  j["recording"] = run.recording.empty() ? json(nullptr) : json(run.recording);
   return j;
 }
 

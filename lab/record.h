@@ -46,6 +46,26 @@ RunHashes hashesFromJson(const nlohmann::json& j);
 // iterations, gyroscopic).
 nlohmann::json recordSettingsJson(const Method& m, const SolverSettings& s);
 
+// One panel of a recording: what it shows (a method's text, or "" for a scene's own settings),
+// its resolved settings as a record holds them (recordSettingsJson), and its engine.
+struct RecordingPanel {
+  std::string name;
+  nlohmann::json settings;
+  std::string method;    // the spec it ran, when a method was given
+  bool bullet = false;
+};
+// A recording's metadata (docs/recordings.md): the format and version, the scene (its file, the
+// folder its meshes are found from, its text), the model's body and joint counts, the panels,
+// `every` and the planned steps, and what addReproduction() writes of the run but what only its
+// end knows (steps done, state hashes: the frames themselves are the run). The top-level settings
+// and engine are the first panel's.
+nlohmann::json recordingMeta(const Scene& scene, const std::vector<RecordingPanel>& panels, long long every, long long plannedSteps);
+
+// A recording's file name in a folder of them: "<scene>-<method>.rec", with "-h<step>" when a
+// sweep gave the time step, characters other than letters, digits, '.', '=', '_' and '-' as '_':
+// "card_house-a5_n=4_m=1.rec", "chain-a2_m=4-h1_120.rec".
+std::string recordingFileName(const Scene& scene, const std::string& method, const std::optional<double>& dt = std::nullopt);
+
 nlohmann::json recordJson(const Scene& scene, const RunResult& run, double seconds, int repeat,
                           const std::optional<SweepPlace>& place = std::nullopt);
 

@@ -1,6 +1,8 @@
 #include "lab/runner.h"
 
 #include "lab/bullet_peer.h"
+#include "lab/record.h"
+#include "physics/recording.h"
 
 #include <algorithm>
 #include <chrono>
@@ -75,11 +77,23 @@ Pass runPass(const Scene& scene, RunResult& r, const RunSetup& setup, Probe* pro
   Frames frames(setup.frameRate, r.frames);
   StateHashes hashes(scene.model, r.steps);
   std::optional<StopWhen> stopWhen;
+  std::optional<RecordingWriter> writer;
+  std::optional<RecordingObserver> recorder;
   if (probe) {
     stopWhen.emplace(setup, *probe);
     run.add(*probe).add(frames).add(hashes).add(*stopWhen);
+    if (!setup.recording.empty()) {
+      const RecordingPanel panel{r.method.text, recordSettingsJson(r.method, r.settings), r.method.text, r.method.isBullet()};
+      writer.emplace(setup.recording, recordingMeta(scene, {panel}, setup.recordEvery, r.steps));
+      recorder.emplace(*writer, scene.model, 0, setup.recordEvery, r.steps);
+      run.add(*recorder);
+    }
   }
   const RunOutcome& o = run.run();
+  if (writer && (o.end == RunOutcome::End::Planned || o.end == RunOutcome::End::Diverged)) {
+    writer->commit();  // as `substep run` writes its outputs: a divergence keeps the steps before it
+    r.recording = setup.recording;
+  }
   if (probe) {
     r.stepsDone = o.steps;
     r.time = m.engine().state().time;

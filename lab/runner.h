@@ -31,6 +31,10 @@ struct RunSetup {
   // Asked after every step of the first run with the metrics so far and the time: a non-empty
   // answer stops the run there (advice stops a run once it has missed its target).
   std::function<std::string(const Metrics&, double)> stop;
+  // Where to write the run's recording (physics/recording.h), "" for none: every
+  // `recordEvery`-th step of the first run, committed when the run ends by its plan or a divergence.
+  std::string recording;
+  long long recordEvery = 1;
 };
 
 struct RunResult {
@@ -48,6 +52,8 @@ struct RunResult {
   Metrics metrics;
   std::vector<State> frames;            // at frameRate, from t = 0
   RunHashes hashes;                     // of the observed pass, to re-run it against
+  std::string recording;                // the recording written (RunSetup::recording), "" if none; a
+                                        // record names it relative to its own folder instead
   double msPerSecond() const { return cost.msPerStep / settings.dt; }  // cost of a simulated second [ms]
 };
 

@@ -973,6 +973,8 @@ Scene parseScene(const std::string& text, const std::string& file, const std::st
   if (!json::sax_parse(text, &checker)) throw SceneError(file, sourcePosition(text, checker.position()), checker.message());
   Scene scene = Reader(file, baseDir, lim).read(json::parse(text));
   scene.hash = contentHash(text);
+  scene.text = text;
+  scene.baseDir = baseDir;
   return scene;
 }
 

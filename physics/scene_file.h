@@ -95,6 +95,8 @@ struct SceneCriteria {
 struct Scene {
   std::string file;            // as given to loadScene
   std::string hash;            // of the file's content (contentHash, physics/state_hash.h): records name it
+  std::string text;            // the content parsed, so that a recording can carry its scene (physics/recording.h)
+  std::string baseDir;         // where its mesh paths are resolved from
   std::string description;
   Model model;
   State initial;

@@ -23,7 +23,7 @@ using Mat4f = Eigen::Matrix4f;
 
 // Meshes the backend generates once (render/meshes.h); ids from kFirstCustomMesh on index
 // DrawList::meshes (convex and triangle meshes of the model, in body coordinates).
-enum MeshId : int { kBoxMesh = 0, kSphereMesh, kCapsuleMesh, kCylinderMesh, kQuadMesh, kFirstCustomMesh };
+enum MeshId : int { kBoxMesh = 0, kSphereMesh, kCapsuleMesh, kCylinderMesh, kQuadMesh, kConeMesh, kFirstCustomMesh };
 
 enum InstanceFlags : uint32_t {
   kGrid = 1u,        // draw a 1 m / 5 m grid on its upward faces (grounds)
@@ -66,7 +66,7 @@ struct TextLine {
 struct DrawList {
   std::vector<std::shared_ptr<const Mesh>> meshes;  // mesh id kFirstCustomMesh + i
   std::vector<Instance> solids;                     // lit, shadowed, depth tested
-  std::vector<Instance> overlays;                   // contacts and joints: flat colour, drawn over the solids
+  std::vector<Instance> overlays;                   // contacts, joints, forces: flat colour, drawn over the solids
   Camera camera;
   Vec3f lightDirection = Vec3f(0.5f, -1.0f, -0.45f).normalized();  // direction the light travels: from the upper left, in front
   Vec3f boundsCentre = Vec3f::Zero();  // what the shadow map must cover

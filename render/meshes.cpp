@@ -121,7 +121,36 @@ MeshData quadMesh() {
   return m;
 }
 
-bool isRound(int meshId) { return meshId == kSphereMesh || meshId == kCapsuleMesh || meshId == kCylinderMesh; }
+MeshData coneMesh(int slices) {
+  MeshData m;
+  // The side's normal leans up by the slope: the surface rises 2 while it narrows by 1. Each
+  // slice has its own apex vertex, with the normal of the slice's middle.
+  const float ny = 1 / std::sqrt(5.0f), nr = 2 / std::sqrt(5.0f);
+  for (int s = 0; s < slices; ++s) {
+    const float lon0 = 2 * kPi * s / slices, lon1 = 2 * kPi * (s + 1) / slices, mid = 0.5f * (lon0 + lon1);
+    const uint32_t a = static_cast<uint32_t>(m.vertices.size());
+    addVertex(m, Vec3f(std::sin(lon0), -1, std::cos(lon0)), Vec3f(nr * std::sin(lon0), ny, nr * std::cos(lon0)));
+    addVertex(m, Vec3f(std::sin(lon1), -1, std::cos(lon1)), Vec3f(nr * std::sin(lon1), ny, nr * std::cos(lon1)));
+    addVertex(m, Vec3f(0, 1, 0), Vec3f(nr * std::sin(mid), ny, nr * std::cos(mid)));
+    m.indices.insert(m.indices.end(), {a, a + 1, a + 2});
+  }
+  const Vec3f down = -Vec3f::UnitY();
+  const uint32_t centre = static_cast<uint32_t>(m.vertices.size());
+  addVertex(m, down, down);
+  for (int s = 0; s <= slices; ++s) {
+    const float lon = 2 * kPi * s / slices;
+    addVertex(m, Vec3f(std::sin(lon), -1, std::cos(lon)), down);
+  }
+  for (int s = 0; s < slices; ++s) {
+    const uint32_t a = centre + 1 + s;
+    m.indices.insert(m.indices.end(), {centre, a + 1, a});
+  }
+  return m;
+}
+
+bool isRound(int meshId) {
+  return meshId == kSphereMesh || meshId == kCapsuleMesh || meshId == kCylinderMesh || meshId == kConeMesh;
+}
 
 int roundLevel(float radiusPixels, float maxError) {
   for (int level = 0; level < kFinestLevel; ++level)
@@ -138,6 +167,7 @@ MeshData primitiveMesh(int id, int level) {
     case kCapsuleMesh: return capsuleMesh(n, n / 4);
     case kCylinderMesh: return cylinderMesh(n);
     case kQuadMesh: return quadMesh();
+    case kConeMesh: return coneMesh(n);
     default: throw std::invalid_argument("primitiveMesh: no primitive with id " + std::to_string(id));
   }
 }

@@ -23,12 +23,14 @@ struct MeshData {
 
 // Unit primitives, as Instance scales them:
 //   box: half extents 1;  sphere: radius 1;  capsule: radius 1, hemispheres split at y = 0;
-//   cylinder: radius 1, half height 1 (axis Y);  quad: the square [-1,1]² in the XZ plane, normal +Y.
+//   cylinder: radius 1, half height 1 (axis Y);  quad: the square [-1,1]² in the XZ plane, normal +Y;
+//   cone: base of radius 1 at y = -1, apex at y = +1 (arrow heads).
 MeshData boxMesh();
 MeshData sphereMesh(int slices = 32, int stacks = 16);
 MeshData capsuleMesh(int slices = 32, int ringsPerCap = 8);
 MeshData cylinderMesh(int slices = 32);
 MeshData quadMesh();
+MeshData coneMesh(int slices = 32);
 
 // Levels of detail of the round primitives (sphere, capsule, cylinder): slices around the axis,
 // the finest (32, with 16 stacks, 8 rings per capsule cap) the one used for everything before.
@@ -43,7 +45,7 @@ inline constexpr int kFinestLevel = kRoundLevels - 1;
 // levels save is measured in docs/rendering.md.
 inline constexpr float kMaxSilhouetteError = 0.5f;
 inline constexpr float kMaxShadowSilhouetteError = 0.5f;
-bool isRound(int meshId);  // sphere, capsule, cylinder
+bool isRound(int meshId);  // sphere, capsule, cylinder, cone
 // The coarsest level whose silhouette of a circle `radiusPixels` across stays within `maxError`.
 int roundLevel(float radiusPixels, float maxError = kMaxSilhouetteError);
 // A primitive at a level of detail (boxes and quads have one).

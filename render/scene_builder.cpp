@@ -38,6 +38,13 @@ Vec3f hsv(float h, float s, float v) {
   return rgb + Vec3f::Constant(m);
 }
 
+// The largest 1, 2 or 5 times a power of ten not above x (> 0).
+double niceFloor(double x) {
+  const double p = std::pow(10.0, std::floor(std::log10(x)));
+  const double m = x / p;
+  return (m >= 5 ? 5 : m >= 2 ? 2 : 1) * p;
+}
+
 // The rotation taking +Y to the unit vector d.
 Quatf fromY(const Vec3f& d) { return Quatf::FromTwoVectors(Vec3f::UnitY(), d); }
 
@@ -53,6 +60,26 @@ Instance segment(const Vec3f& a, const Vec3f& b, float radius, const Vec3f& colo
   in.colour = Vec4f(colour.x(), colour.y(), colour.z(), 1.0f);
   in.flags = kNoShadow;
   return in;
+}
+
+// An arrow from a to b: a shaft of `radius` and a cone head 3.5 radii wide and 10 long, shrunk
+// with the arrow when it is shorter than twice its head.
+void arrow(std::vector<Instance>& out, const Vec3f& a, const Vec3f& b, float radius, const Vec3f& colour) {
+  const Vec3f d = b - a;
+  const float len = d.norm();
+  if (!(len > 1e-9f)) return;
+  const float shrink = std::min(1.0f, 0.5f * len / (10 * radius));
+  const float headLen = 10 * radius * shrink, headR = 3.5f * radius * shrink;
+  const Vec3f u = d / len, neck = b - headLen * u;
+  if (len > headLen) out.push_back(segment(a, neck, radius * std::max(shrink, 0.5f), colour));
+  Instance head;
+  head.mesh = kConeMesh;
+  head.position = 0.5f * (neck + b);
+  head.rotation = fromY(u);
+  head.scale = Vec3f(headR, 0.5f * headLen, headR);
+  head.colour = Vec4f(colour.x(), colour.y(), colour.z(), 1.0f);
+  head.flags = kNoShadow;
+  out.push_back(head);
 }
 
 Instance dot(const Vec3f& p, float radius, const Vec3f& colour) {
@@ -261,6 +288,9 @@ Vec3f rampColour(double t) {
 }
 
 Vec3f staticColour() { return {0.56f, 0.57f, 0.6f}; }
+Vec3f normalImpulseColour() { return {1.0f, 0.55f, 0.08f}; }
+Vec3f frictionImpulseColour() { return {0.25f, 1.0f, 0.3f}; }
+Vec3f jointErrorColour() { return {1.0f, 0.08f, 0.08f}; }
 
 std::optional<ColourMode> parseColourMode(const std::string& s) {
   if (s == "auto") return ColourMode::Auto;
@@ -293,29 +323,55 @@ std::string sceneLine(const Scene& scene) {
 
 // ---- builder ----
 
-std::vector<double> bodyErrors(const Model& model, const State& state, const std::vector<Manifold>* manifolds) {
+std::vector<double> bodyErrors(const Model& model, const Snapshot& snap) {
+  const State& state = snap.state;
   std::vector<double> err(model.bodies.size(), 0.0);
-  if (manifolds)
-    for (const Manifold& m : *manifolds) {
-      const Pose A = state.bodies[static_cast<size_t>(m.a)].pose(), B = state.bodies[static_cast<size_t>(m.b)].pose();
-      for (int k = 0; k < m.count; ++k) {
-        const ManifoldPoint& p = m.points[k];
-        const double pen = -(A.apply(p.localA) - B.apply(p.localB)).dot(B.rotate(p.localN));
-        err[static_cast<size_t>(m.a)] = std::max(err[static_cast<size_t>(m.a)], pen);
-        err[static_cast<size_t>(m.b)] = std::max(err[static_cast<size_t>(m.b)], pen);
-      }
+  for (const ManifoldSnap& m : snap.manifolds)
+    for (int k = m.first; k < m.first + m.count; ++k) {
+      const double pen = snap.contacts[static_cast<size_t>(k)].depth;
+      err[static_cast<size_t>(m.a)] = std::max(err[static_cast<size_t>(m.a)], pen);
+      err[static_cast<size_t>(m.b)] = std::max(err[static_cast<size_t>(m.b)], pen);
     }
-  for (const Joint& j : model.joints) {
-    const double e = jointError(j, state.bodies[static_cast<size_t>(j.bodyA)].pose(),
-                                state.bodies[static_cast<size_t>(j.bodyB)].pose());
+  const bool measured = snap.joints.size() == model.joints.size();  // else measure them here
+  for (size_t k = 0; k < model.joints.size(); ++k) {
+    const Joint& j = model.joints[k];
+    const double e = measured ? static_cast<double>(snap.joints[k].error)
+                              : jointError(j, state.bodies[static_cast<size_t>(j.bodyA)].pose(),
+                                           state.bodies[static_cast<size_t>(j.bodyB)].pose());
     err[static_cast<size_t>(j.bodyA)] = std::max(err[static_cast<size_t>(j.bodyA)], e);
     err[static_cast<size_t>(j.bodyB)] = std::max(err[static_cast<size_t>(j.bodyB)], e);
   }
   return err;
 }
 
-DrawList buildDrawList(const Model& model, const State& state, const std::vector<Manifold>* manifolds,
-                       const Camera& camera, const ViewOptions& view, const HudInfo& hud) {
+double impulseTime(const SolverSettings& settings) {
+  return subSteps(settings.algorithm) ? settings.dt / settings.substeps : settings.dt;
+}
+
+double autoForceScale(const Model& model, const Snapshot& snap, double impulseTime) {
+  double mass = 0, radius = 0;
+  for (const Body& b : model.bodies)
+    if (!b.isStatic && b.mass > mass) {
+      mass = b.mass;
+      radius = b.shape.boundingRadius();
+    }
+  double tau = impulseTime;
+  if (!(tau > 0))
+    tau = snap.state.step > 0 && snap.state.time > 0 ? snap.state.time / static_cast<double>(snap.state.step) : 1.0 / 60;
+  const double weight = mass * model.gravity.norm() * tau;  // [N s]
+  if (!(weight > 0) || !(radius > 0) || !std::isfinite(weight)) return 1;  // nothing rests: any scale
+  return niceFloor(radius / weight);
+}
+
+std::string forceLegend(double scale, double about) {
+  const double len = niceFloor(about), impulse = len / scale;
+  std::string l = len >= 1 ? fmt("%g m", len) : len >= 0.01 ? fmt("%g cm", len * 1e2) : fmt("%g mm", len * 1e3);
+  return "arrow " + l + " = " + fmt("%.3g N s", impulse);
+}
+
+DrawList buildDrawList(const Model& model, const Snapshot& snap, const Camera& camera, const ViewOptions& view,
+                       const HudInfo& hud) {
+  const State& state = snap.state;
   DrawList dl;
   dl.camera = camera;
   shadowBounds(model, state, dl.boundsCentre, dl.boundsRadius);
@@ -329,7 +385,7 @@ DrawList buildDrawList(const Model& model, const State& state, const std::vector
     mode = groups.size() >= 2 ? ColourMode::Group : ColourMode::Body;
   }
   std::vector<double> errors;
-  if (mode == ColourMode::Error) errors = bodyErrors(model, state, manifolds);
+  if (mode == ColourMode::Error) errors = bodyErrors(model, snap);
 
   std::map<int, int> membersSoFar;  // per group, for shading members apart
   std::vector<int> highlighted(model.bodies.size(), 0);
@@ -416,18 +472,39 @@ DrawList buildDrawList(const Model& model, const State& state, const std::vector
   // Overlays are sized with the view so they read the same from near and far.
   const float viewSize = (camera.eye - camera.target).norm() * std::tan(0.5f * camera.fovY * static_cast<float>(kDegree));
   const float dotR = 0.012f * viewSize, lineR = 0.0035f * viewSize, normalLen = 0.08f * viewSize;
-  if (view.contacts && manifolds) {
-    for (const Manifold& m : *manifolds) {
-      const Pose A = state.bodies[static_cast<size_t>(m.a)].pose(), B = state.bodies[static_cast<size_t>(m.b)].pose();
-      for (int k = 0; k < m.count; ++k) {
-        const ManifoldPoint& p = m.points[k];
-        const Vec3 pa = A.apply(p.localA), pb = B.apply(p.localB), n = B.rotate(p.localN);
-        const Vec3f mid = (0.5 * (pa + pb)).cast<float>();
-        const bool touching = (pa - pb).dot(n) <= 0;  // speculative points are still apart
-        dl.overlays.push_back(dot(mid, dotR, touching ? Vec3f(1.0f, 0.9f, 0.1f) : Vec3f(0.6f, 0.6f, 0.6f)));
-        // The normal points from B into A, as the solver uses it.
-        dl.overlays.push_back(segment(mid, mid + normalLen * n.cast<float>(), lineR, Vec3f(0.1f, 0.95f, 1.0f)));
+  if (view.contacts) {
+    for (const ContactSnap& c : snap.contacts) {
+      const bool touching = c.depth >= 0;  // speculative points are still apart
+      dl.overlays.push_back(dot(c.point, dotR, touching ? Vec3f(1.0f, 0.9f, 0.1f) : Vec3f(0.6f, 0.6f, 0.6f)));
+      // The normal points from B into A, as the solver uses it.
+      dl.overlays.push_back(segment(c.point, c.point + normalLen * c.normal, lineR, Vec3f(0.1f, 0.95f, 1.0f)));
+    }
+  }
+  const double forceScale = view.forceScale > 0 ? view.forceScale : autoForceScale(model, snap, view.impulseTime);
+  if (view.forces) {
+    // The impulses on a body of each pair: on A (λn along the normal, from B into A; friction in
+    // the contact plane), or on B, the opposite ones, when A is static: a ground is not pushed.
+    const float k = static_cast<float>(forceScale), arrowR = 1.4f * lineR;
+    for (const ManifoldSnap& m : snap.manifolds) {
+      if (m.count <= 0) continue;
+      const float sign = model.bodies[static_cast<size_t>(m.a)].isStatic ? -1.0f : 1.0f;
+      Vec3f centre = Vec3f::Zero();
+      for (int i = m.first; i < m.first + m.count; ++i) {
+        const ContactSnap& c = snap.contacts[static_cast<size_t>(i)];
+        centre += c.point;
+        if (c.normalImpulse > 0)
+          arrow(dl.overlays, c.point, c.point + sign * k * c.normalImpulse * c.normal, arrowR, normalImpulseColour());
       }
+      centre /= static_cast<float>(m.count);
+      arrow(dl.overlays, centre, centre + sign * k * m.friction, arrowR, frictionImpulseColour());
+    }
+  }
+  if (view.jointErrors) {
+    for (const Joint& j : model.joints) {
+      const Vec3f wa = state.bodies[static_cast<size_t>(j.bodyA)].pose().apply(j.localAnchorA).cast<float>();
+      const Vec3f wb = state.bodies[static_cast<size_t>(j.bodyB)].pose().apply(j.localAnchorB).cast<float>();
+      // Shorter than the line is wide, a segment would be a dot of no length: a joint that holds.
+      if ((wa - wb).norm() >= lineR) dl.overlays.push_back(segment(wa, wb, 2.5f * lineR, jointErrorColour()));
     }
   }
   if (view.joints) {
@@ -465,6 +542,13 @@ DrawList buildDrawList(const Model& model, const State& state, const std::vector
     if (!legend.empty()) dl.footer.push_back({legend, grey});
     if (view.contacts) dl.footer.push_back({"contacts: points yellow, normals cyan", grey});
     if (view.joints) dl.footer.push_back({"joints: anchors and arms magenta, axes white", grey});
+    auto rgba = [](const Vec3f& c) { return Vec4f(c.x(), c.y(), c.z(), 1); };
+    if (view.forces) {
+      dl.footer.push_back({"impulses: " + forceLegend(forceScale, 0.15 * viewSize), grey});
+      dl.footer.push_back({"  normal (λn at each contact point)", rgba(normalImpulseColour())});
+      dl.footer.push_back({"  friction (per touching pair)", rgba(frictionImpulseColour())});
+    }
+    if (view.jointErrors) dl.footer.push_back({"joint errors: anchor A to anchor B", rgba(jointErrorColour())});
   }
   return dl;
 }

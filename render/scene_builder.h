@@ -1,11 +1,11 @@
-// The scene builder: a physics state (Model, State, the world's manifolds) to a DrawList. It reads
-// physics and never steps it.
+// The scene builder: a Snapshot of a step (bodies, contacts, joints; physics/snapshot.h) to a
+// DrawList. It reads physics and never steps it, so a recording draws exactly as a live run.
 #pragma once
 
-#include "physics/collision/manifold.h"
 #include "physics/model.h"
 #include "physics/scene_file.h"
 #include "physics/settings.h"
+#include "physics/snapshot.h"
 #include "physics/state.h"
 #include "render/draw_list.h"
 
@@ -37,7 +37,26 @@ struct ViewOptions {
   double speedScale = 5;       // [m/s] red in Speed mode
   double restSpeed = 0.05;     // [m/s and rad/s] Activity mode: below both, a body is at rest
   double errorScale = 0.01;    // [m] red in Error mode
+  bool forces = false;         // contact impulses: λn along each normal, friction at each manifold's centre
+  bool jointErrors = false;    // each joint's separation: a red segment from A's anchor to B's
+  double forceScale = 0;       // arrow length per impulse [m per N s]; 0: autoForceScale
+  double impulseTime = 0;      // [s] what one drawn impulse acts over (impulseTime of the settings); 0: a step
 };
+
+// The time a snapshot's impulses act over: the last sub-step's, h / n, for methods with
+// sub-steps, else the step h [s].
+double impulseTime(const SolverSettings& settings);
+
+// The scale of the force arrows when ViewOptions::forceScale is 0: the impulse that holds the
+// heaviest dynamic body up for the impulses' time τ, m |g| τ, drawn as long as that body's
+// bounding radius, rounded down to 1, 2 or 5 times a power of ten [m per N s]. It depends on the
+// model and the settings only, so a run's arrows keep one scale from frame to frame. τ is
+// ViewOptions::impulseTime, else the snapshot's step (its time over its step count; 1/60 s
+// before the first step).
+double autoForceScale(const Model& model, const Snapshot& snapshot, double impulseTime = 0);
+// What a force arrow's length means, for the legend: a length of 1, 2 or 5 times a power of ten
+// at most `about` [m] and the impulse it stands for at `scale`, e.g. "arrow 10 cm = 2.5 N s".
+std::string forceLegend(double scale, double about);
 
 // What the heads-up text says besides the scene.
 struct HudInfo {
@@ -67,16 +86,19 @@ CameraPreset fittedCamera(const Model& model, const State& state);
 // The look-at camera of a preset at a state: follows its body, turns by `orbit` deg/s.
 Camera placeCamera(const CameraPreset& preset, const Model& model, const State& state, double orbit = 0);
 
-// Worst penetration of each body's contacts and separation of its joints, at the state [m].
-std::vector<double> bodyErrors(const Model& model, const State& state, const std::vector<Manifold>* manifolds);
+// Worst penetration of each body's contacts and separation of its joints in the snapshot [m].
+std::vector<double> bodyErrors(const Model& model, const Snapshot& snapshot);
 
-DrawList buildDrawList(const Model& model, const State& state, const std::vector<Manifold>* manifolds,
-                       const Camera& camera, const ViewOptions& view, const HudInfo& hud);
+DrawList buildDrawList(const Model& model, const Snapshot& snapshot, const Camera& camera, const ViewOptions& view,
+                       const HudInfo& hud);
 
 // Colours, exposed for tests and legends.
 Vec3f bodyColour(int index);          // distinct hues (golden-ratio steps)
 Vec3f groupColour(int group, int member);  // the group's hue, members in different shades
 Vec3f rampColour(double t);           // t in [0,1]: blue, cyan, green, yellow, red
 Vec3f staticColour();
+Vec3f normalImpulseColour();          // force arrows along contact normals
+Vec3f frictionImpulseColour();        // friction arrows
+Vec3f jointErrorColour();             // joint error segments
 
 }  // namespace substep::render

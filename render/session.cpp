@@ -272,9 +272,12 @@ DrawList RenderSession::drawList(int i, const State* state) const {
     hud.status = buf;
   }
   const Camera cam = placeCamera(look_.camera, scene_->model, s, look_.orbit);
-  // A diverged world's manifolds belong to its non-finite state; a past step's are not the world's.
-  const bool current = !p.diverged() && p.live() && !p.recorded() && !state;
-  DrawList dl = buildDrawList(scene_->model, s, current ? &p.world().manifolds() : nullptr, cam, look_.view, hud);
+  // The step shown, with its own contacts (a diverged panel's: its last finite step's); another
+  // state has none.
+  const Snapshot other = state ? takeSnapshot(scene_->model, *state) : Snapshot{};
+  ViewOptions view = look_.view;
+  view.impulseTime = impulseTime(p.settings());
+  DrawList dl = buildDrawList(scene_->model, state ? other : p.shown(), cam, view, hud);
   if (!lone) dl.label = settingsLine(p.settings(), LineDetail::Brief);
   return dl;
 }

@@ -159,7 +159,7 @@ TEST(Meshes, ModelMeshesKeepCreasesAndSmoothCurves) {
 
 TEST(SceneBuilder, OneInstancePerBodyWithItsShapeAndPose) {
   const Scene s = scene("shapes.json");
-  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, {});
+  const DrawList dl = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), {}, {});
   ASSERT_EQ(dl.solids.size(), s.model.bodies.size());
   for (const Instance& in : dl.solids) {
     const Body& b = s.model.bodies[static_cast<size_t>(in.body)];
@@ -206,7 +206,7 @@ TEST(SceneBuilder, GroundsBelowEverythingCastNoShadow) {
     ADD_FAILURE() << name;
     return 0u;
   };
-  const DrawList dl = buildDrawList(pile.model, settled, nullptr, defaultCamera(pile), {}, {});
+  const DrawList dl = buildDrawList(pile.model, takeSnapshot(pile.model, settled), defaultCamera(pile), {}, {});
   EXPECT_TRUE(flagsOf(dl, pile.model, "ground") & kNoShadow);
   EXPECT_FALSE(flagsOf(dl, pile.model, "step_0") & kNoShadow);
   for (const Instance& in : dl.solids) {
@@ -218,7 +218,8 @@ TEST(SceneBuilder, GroundsBelowEverythingCastNoShadow) {
   const int b = pile.model.bodyIndex("ragdoll_0_pelvis");
   ASSERT_GE(b, 0);
   settled.bodies[static_cast<size_t>(b)].x.y() = 0.0;
-  EXPECT_FALSE(flagsOf(buildDrawList(pile.model, settled, nullptr, defaultCamera(pile), {}, {}), pile.model, "ground") &
+  EXPECT_FALSE(flagsOf(buildDrawList(pile.model, takeSnapshot(pile.model, settled), defaultCamera(pile), {}, {}),
+                       pile.model, "ground") &
                kNoShadow);
 }
 
@@ -227,7 +228,7 @@ TEST(SceneBuilder, PlanesBecomeLargeQuadsFacingTheirNormal) {
       {"name": "floor", "static": true, "shape": {"type": "plane", "normal": [0, 0, 1], "offset": 2}},
       {"name": "ball", "shape": {"type": "sphere", "radius": 0.5}, "position": [0, 0, 5]}]})",
                        "plane.json", ".");
-  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, {});
+  const DrawList dl = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), {}, {});
   const Instance& q = dl.solids[0];
   EXPECT_EQ(q.mesh, kQuadMesh);
   EXPECT_TRUE((q.rotation * Vec3f::UnitY()).isApprox(Vec3f::UnitZ(), 1e-5f));
@@ -239,7 +240,7 @@ TEST(SceneBuilder, PlanesBecomeLargeQuadsFacingTheirNormal) {
 TEST(SceneBuilder, ColoursTellBodiesApartAndShowQuantities) {
   Scene s = scene("stack.json");
   // One group (a single stack): auto colours by body, five distinct colours.
-  const DrawList byBody = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, {});
+  const DrawList byBody = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), {}, {});
   std::set<std::vector<int>> colours;
   for (const Instance& in : byBody.solids)
     if (!s.model.bodies[static_cast<size_t>(in.body)].isStatic)
@@ -253,42 +254,48 @@ TEST(SceneBuilder, ColoursTellBodiesApartAndShowQuantities) {
   moving.bodies[static_cast<size_t>(top)].v = Vec3(10, 0, 0);
   ViewOptions v;
   v.colour = ColourMode::Speed;
-  const DrawList speed = buildDrawList(s.model, moving, nullptr, defaultCamera(s), v, {});
+  const DrawList speed = buildDrawList(s.model, takeSnapshot(s.model, moving), defaultCamera(s), v, {});
   EXPECT_TRUE(speed.solids[static_cast<size_t>(top)].colour.head<3>().isApprox(rampColour(1.0)));
   EXPECT_TRUE(speed.solids[static_cast<size_t>(top) - 1].colour.head<3>().isApprox(rampColour(0.0)));
   EXPECT_FALSE(rampColour(0.0).isApprox(rampColour(1.0)));
   v.colour = ColourMode::Activity;
-  const DrawList act = buildDrawList(s.model, moving, nullptr, defaultCamera(s), v, {});
+  const DrawList act = buildDrawList(s.model, takeSnapshot(s.model, moving), defaultCamera(s), v, {});
   EXPECT_FALSE(act.solids[static_cast<size_t>(top)].colour.isApprox(act.solids[static_cast<size_t>(top) - 1].colour));
   EXPECT_TRUE(act.solids[1].colour.isApprox(act.solids[2].colour));  // both at rest
 
-  // Error: sink the top box 5 cm into the one below; a step finds the contact, and at the sunk
-  // coordinates its manifold measures the overlap.
+  // Error: sink the top box 5 cm into the one below; a step finds the contact, and its snapshot
+  // measures what is left of the overlap at the step's end.
   State sunk = s.initial;
   sunk.bodies[static_cast<size_t>(top)].x.y() -= 0.05;
   SolverSettings settings = resolve(s.solver);
   World world(s.model, settings, sunk);
   world.step();
-  const std::vector<double> err = bodyErrors(s.model, sunk, &world.manifolds());
-  EXPECT_NEAR(err[static_cast<size_t>(top)], 0.05, 0.005);
-  EXPECT_NEAR(err[static_cast<size_t>(top) - 1], 0.05, 0.005);  // both sides of the contact
+  Snapshot snap = takeSnapshot(world);
+  std::vector<double> err = bodyErrors(s.model, snap);
+  EXPECT_GT(err[static_cast<size_t>(top)], 0.001);  // pushed out by most of the 5 cm in one step
+  EXPECT_GE(err[static_cast<size_t>(top) - 1], err[static_cast<size_t>(top)]);  // both sides of the contact
   EXPECT_LT(err[1], 0.005);  // the bottom box sits on the ground
+  // The depths are the snapshot's (a recording's), not measured again from the state.
+  for (const ManifoldSnap& m : snap.manifolds)
+    if (m.a == top || m.b == top) snap.contacts[static_cast<size_t>(m.first)].depth = 0.07f;
+  err = bodyErrors(s.model, snap);
+  EXPECT_NEAR(err[static_cast<size_t>(top)], 0.07, 1e-7);
   v.colour = ColourMode::Error;
-  const DrawList e = buildDrawList(s.model, sunk, &world.manifolds(), defaultCamera(s), v, {});
+  const DrawList e = buildDrawList(s.model, snap, defaultCamera(s), v, {});
   EXPECT_TRUE(e.solids[static_cast<size_t>(top)].colour.head<3>().isApprox(rampColour(1.0)));
   EXPECT_FALSE(e.footer.empty());  // the legend says what the colours mean
 
   // Highlight: only the named body glows.
   v = ViewOptions{};
   v.highlight = {"stack_2"};
-  const DrawList h = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), v, {});
+  const DrawList h = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), v, {});
   for (const Instance& in : h.solids) EXPECT_EQ(in.highlight, in.body == s.model.bodyIndex("stack_2") ? 1.0f : 0.0f);
 }
 
 TEST(SceneBuilder, GroupsGetOneHueWithDistinctShades) {
   const Scene s = scene("pile.json");  // columns in ten groups
   ViewOptions v;
-  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), v, {});
+  const DrawList dl = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), v, {});
   std::map<int, std::set<std::vector<int>>> perGroup;
   for (const Instance& in : dl.solids) {
     const Body& b = s.model.bodies[static_cast<size_t>(in.body)];
@@ -309,7 +316,7 @@ TEST(SceneBuilder, ContactOverlaysShowPointsAndNormals) {
   ASSERT_EQ(points, 4);
   ViewOptions v;
   v.contacts = true;
-  const DrawList dl = buildDrawList(s.model, world.state(), &world.manifolds(), defaultCamera(s), v, {});
+  const DrawList dl = buildDrawList(s.model, takeSnapshot(world), defaultCamera(s), v, {});
   ASSERT_EQ(dl.overlays.size(), 2u * points);
   const Manifold& m = world.manifolds()[0];
   const Vec3f intoA = (world.state().bodies[static_cast<size_t>(m.a)].x - world.state().bodies[static_cast<size_t>(m.b)].x)
@@ -325,14 +332,14 @@ TEST(SceneBuilder, ContactOverlaysShowPointsAndNormals) {
     }
   }
   // Off by default.
-  EXPECT_TRUE(buildDrawList(s.model, world.state(), &world.manifolds(), defaultCamera(s), {}, {}).overlays.empty());
+  EXPECT_TRUE(buildDrawList(s.model, takeSnapshot(world), defaultCamera(s), {}, {}).overlays.empty());
 }
 
 TEST(SceneBuilder, JointOverlaysMarkAnchorsAndArms) {
   const Scene s = scene("pendulum_chain.json");
   ViewOptions v;
   v.joints = true;
-  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), v, {});
+  const DrawList dl = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), v, {});
   // Two arms and an anchor per ball joint (the two anchors coincide at the start).
   EXPECT_EQ(dl.overlays.size(), 3 * s.model.joints.size());
   const Joint& j = s.model.joints[0];
@@ -367,18 +374,18 @@ TEST(SceneBuilder, HudSaysSceneSettingsTimeAndCost) {
   hud.settings = line;
   hud.time = 1.25;
   hud.stepMs = 0.5;
-  const DrawList dl = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, hud);
+  const DrawList dl = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), {}, hud);
   ASSERT_EQ(dl.hud.size(), 3u);
   EXPECT_EQ(dl.hud[0].text, "stack: 5 bodies, 0 joints");
   EXPECT_EQ(dl.hud[2].text, "t = 1.250 s    step 0.50 ms");
   hud.stepMs = std::numeric_limits<double>::quiet_NaN();
   hud.status = "diverged";
-  const DrawList noCost = buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), {}, hud);
+  const DrawList noCost = buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), {}, hud);
   EXPECT_EQ(noCost.hud[2].text, "t = 1.250 s");
   EXPECT_EQ(noCost.hud[3].text, "diverged");
   ViewOptions off;
   off.hud = false;
-  EXPECT_TRUE(buildDrawList(s.model, s.initial, nullptr, defaultCamera(s), off, hud).hud.empty());
+  EXPECT_TRUE(buildDrawList(s.model, takeSnapshot(s.model, s.initial), defaultCamera(s), off, hud).hud.empty());
 }
 
 // ---- cameras ----

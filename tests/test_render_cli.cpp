@@ -47,7 +47,8 @@ TEST(RenderCli, HelpListsTheOptions) {
   const Outcome r = run("render --help");
   EXPECT_EQ(r.status, 0);
   for (const char* o : {"--compare", "--fps", "--size", "--at", "--seconds", "--camera", "--color", "--contacts", "--joints",
-                        "--algo", "a2:m=4,a5:n=4", "--aa", "--samples", "--shadow-size"})
+                        "--forces", "--joint-errors", "--force-scale", "--algo", "a2:m=4,a5:n=4", "--aa", "--samples",
+                        "--shadow-size"})
     EXPECT_NE(r.output.find(o), std::string::npos) << o;
 }
 
@@ -89,6 +90,8 @@ TEST(RenderCli, BadArgumentsExitWithStatus2AndWriteNothing) {
       {"assets/scenes/stack.json --distance nan -o " + png, "--distance"},
       {"assets/scenes/stack.json --pitch nan -o " + png, "--pitch"},
       {"assets/scenes/stack.json --speed-scale inf -o " + png, "--speed-scale"},
+      {"assets/scenes/stack.json --forces --force-scale -1 -o " + png, "--force-scale"},
+      {"assets/scenes/stack.json --forces --force-scale nan -o " + png, "--force-scale"},
       {"assets/scenes/stack.json --kappa nan --algo a5 -o " + png, "--kappa"},
       {"assets/scenes/stack.json --compare '' -o " + png, "--compare: expected 2 to 4 settings"},
       {"assets/scenes/stack.json --preset '' --algo a5 -o " + png, "--preset"},
@@ -126,6 +129,28 @@ TEST(RenderCli, WritesOnePngAtATime) {
   EXPECT_GT(colours.size(), 500u);
   EXPECT_EQ(listing(d), std::vector<std::string>{"s.png"});
   EXPECT_NE(r.output.find("FXAA"), std::string::npos) << r.output;  // the default anti-aliasing, named
+}
+
+// --forces draws the impulses, --force-scale makes the arrows longer: each changes the frame.
+TEST(RenderCli, ForceArrowsFollowTheirOptions) {
+  const fs::path d = scratch();
+  auto frame = [&](const std::string& name, const std::string& options) {
+    const fs::path f = d / name;
+    const Outcome r = run("render assets/scenes/stack.json --at 1.0 --size 320x180 --no-hud " + options + " -o " +
+                          f.string());
+    EXPECT_EQ(r.status, 0) << r.output;
+    return substep::render::readPng(f.string());
+  };
+  auto differing = [](const substep::render::Image& a, const substep::render::Image& b) {
+    long long n = 0;
+    for (size_t i = 0; i < a.rgba.size(); i += 4)
+      n += std::abs(int(a.rgba[i]) - int(b.rgba[i])) + std::abs(int(a.rgba[i + 1]) - int(b.rgba[i + 1])) > 48;
+    return n;
+  };
+  const substep::render::Image plain = frame("plain.png", ""), forces = frame("forces.png", "--forces"),
+                               longer = frame("longer.png", "--forces --force-scale 20");
+  EXPECT_GT(differing(plain, forces), 50);
+  EXPECT_GT(differing(plain, longer), 2 * differing(plain, forces));  // the automatic scale is 5 m per N s
 }
 
 // Anti-aliasing: FXAA by default, multisampling with --samples (alone, unless --aa fxaa), none.

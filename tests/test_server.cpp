@@ -341,7 +341,9 @@ TEST(Server, BadBodiesAreRefusedAt400) {
       {s + "/panels", {"methods"}},
       {s + "/scene", {"scene", "methods"}},
       {s + "/camera", {"preset", "yaw", "pitch", "distance", "fov", "target", "follow", "orbit", "rotate", "zoom", "pan"}},
-      {s + "/view", {"colour", "color", "contacts", "joints", "hud", "speed_scale", "error_scale", "highlight"}},
+      {s + "/view",
+       {"colour", "color", "contacts", "joints", "hud", "speed_scale", "error_scale", "highlight", "forces",
+        "joint_errors", "force_scale"}},
       {s + "/play", {"speed"}},
       {s + "/pause", {}},
       {s + "/step", {"count"}},
@@ -557,6 +559,16 @@ TEST(Server, CameraAndView) {
   EXPECT_EQ(view["contacts"], true);
   EXPECT_EQ(view["hud"], false);
   EXPECT_EQ(view["speed_scale"], 2);
+  EXPECT_EQ(view["forces"], false);
+  const json forces =
+      post(*c, s + "/view", {{"forces", true}, {"joint_errors", true}, {"force_scale", 0.5}}).body["view"];
+  EXPECT_EQ(forces["forces"], true);
+  EXPECT_EQ(forces["joint_errors"], true);
+  EXPECT_EQ(forces["force_scale"], 0.5);
+  EXPECT_EQ(forces["colour"], "speed");  // the other fields stay
+  const Answer negative = post(*c, s + "/view", {{"force_scale", -1}});
+  EXPECT_EQ(negative.status, 400) << negative.text;
+  EXPECT_NE(negative.text.find("force_scale"), std::string::npos) << negative.text;
 }
 
 TEST(Server, PickAndPush) {

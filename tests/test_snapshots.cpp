@@ -35,7 +35,7 @@ namespace {
 // than the threshold (see ComparisonCanFail).
 const CompareOptions kTolerance;
 
-struct ImageCase {
+struct Golden {
   std::string name;      // tests/snapshots/<name>.png
   std::string scene;     // under assets/scenes/
   double time;           // simulated seconds
@@ -45,7 +45,7 @@ struct ImageCase {
 };
 
 // The library of goldens (adding one: a line here, then an update run, then look at the image).
-const std::vector<ImageCase> kSnapshots = {
+const std::vector<Golden> kSnapshots = {
     // The basic resting stack, lit and shadowed, with the HUD.
     {"stack", "stack.json", 1.0, "",
      [](ViewOptions&, CameraOptions& c) {
@@ -88,7 +88,7 @@ const std::vector<ImageCase> kSnapshots = {
 };
 
 // Test names show the case, not its bytes.
-void PrintTo(const ImageCase& s, std::ostream* os) { *os << s.name; }
+void PrintTo(const Golden& s, std::ostream* os) { *os << s.name; }
 
 std::string goldenPath(const std::string& name) { return SUBSTEP_SOURCE_DIR "/tests/snapshots/" + name + ".png"; }
 
@@ -106,7 +106,7 @@ GlRenderer& renderer(int w, int h) {
 }
 
 // The case's session, stepped to its time: the session `substep render` and `substep snapshot` use.
-RenderSession stage(const ImageCase& s) {
+RenderSession stage(const Golden& s) {
   auto scene = std::make_shared<const Scene>(loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + s.scene));
   Look look;  // stepCost off: the HUD leaves out the step's cost (wall-clock time is not reproducible)
   CameraOptions cam;
@@ -121,7 +121,7 @@ RenderSession stage(const ImageCase& s) {
   return session;
 }
 
-Image draw(const ImageCase& s, const std::vector<DrawList>& lists) {
+Image draw(const Golden& s, const std::vector<DrawList>& lists) {
   return renderer(s.width, s.height).render(gridViews(lists, s.width, s.height));
 }
 
@@ -131,12 +131,12 @@ fs::path failureDir() {
   return d;
 }
 
-class Snapshots : public ::testing::TestWithParam<ImageCase> {};
+class Snapshots : public ::testing::TestWithParam<Golden> {};
 
 }  // namespace
 
 TEST_P(Snapshots, MatchesTheGolden) {
-  const ImageCase& s = GetParam();
+  const Golden& s = GetParam();
   const Image actual = stage(s).frame(renderer(s.width, s.height));
   const std::string golden = goldenPath(s.name);
   if (updating()) {
@@ -159,12 +159,12 @@ TEST_P(Snapshots, MatchesTheGolden) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Golden, Snapshots, ::testing::ValuesIn(kSnapshots),
-                         [](const ::testing::TestParamInfo<ImageCase>& i) { return i.param.name; });
+                         [](const ::testing::TestParamInfo<Golden>& i) { return i.param.name; });
 
 // The comparison must be able to fail: the stack with its top box moved 2 cm sideways does not
 // match the stack as it is.
 TEST(SnapshotTolerance, ComparisonCanFail) {
-  const ImageCase& s = kSnapshots[0];
+  const Golden& s = kSnapshots[0];
   ASSERT_EQ(s.name, "stack");
   const RenderSession st = stage(s);
   const Image same = draw(s, st.drawLists());
@@ -186,7 +186,7 @@ TEST(SnapshotTolerance, ComparisonCanFail) {
 // The pyramid's pixels differ from the background: drawn without its boxes, the frame changes
 // wherever a box was, and a good share of the frame is boxes.
 TEST(SnapshotTolerance, PyramidIsNotEmpty) {
-  const ImageCase s{"pyramid", "pyramid.json", 0.0, "", [](ViewOptions& v, CameraOptions&) { v.hud = false; }};
+  const Golden s{"pyramid", "pyramid.json", 0.0, "", [](ViewOptions& v, CameraOptions&) { v.hud = false; }};
   const RenderSession st = stage(s);
   std::vector<DrawList> full = st.drawLists();
   std::vector<DrawList> empty = full;
@@ -233,7 +233,7 @@ TEST(SnapshotTolerance, MissingFontIsARenderErrorNamingIt) {
 // the pixels, all of them on an edge of the frame drawn without anti-aliasing, and leaves every
 // pixel opaque. 4x multisampling stays available.
 TEST(AntiAliasing, FxaaBlendsEdgesOnlyAndMultisamplingStaysAvailable) {
-  const ImageCase& s = kSnapshots[0];
+  const Golden& s = kSnapshots[0];
   ASSERT_EQ(s.name, "stack");
   const std::vector<DrawList> lists = stage(s).drawLists();
   auto frame = [&](int samples, AntiAliasing aa, const std::string& info) {

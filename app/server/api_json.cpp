@@ -102,7 +102,10 @@ json stateJson(WebSession& s) {
                   {"joints", look.view.joints},
                   {"hud", look.view.hud},
                   {"speed_scale", look.view.speedScale},
-                  {"error_scale", look.view.errorScale}}}};
+                  {"error_scale", look.view.errorScale},
+                  {"forces", look.view.forces},
+                  {"joint_errors", look.view.jointErrors},
+                  {"force_scale", look.view.forceScale}}}};
   });
   const LiveStats st = s.live->stats();
   json clips = json::array();

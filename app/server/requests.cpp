@@ -186,8 +186,9 @@ void CameraChange::apply(Look& look, const std::optional<CameraPreset>& chosen, 
 
 // --- view ---
 
-const std::vector<std::string> ViewChange::kFields = {"colour", "color", "contacts", "joints", "hud",
-                                                      "speed_scale", "error_scale", "highlight"};
+const std::vector<std::string> ViewChange::kFields = {"colour",      "color",       "contacts",     "joints",
+                                                      "hud",         "speed_scale", "error_scale",  "highlight",
+                                                      "forces",      "joint_errors", "force_scale"};
 
 ViewChange::ViewChange(const Fields& f) {
   for (const char* k : {"colour", "color"})
@@ -201,6 +202,9 @@ ViewChange::ViewChange(const Fields& f) {
   if (f.has("contacts")) contacts = f.flag("contacts");
   if (f.has("joints")) joints = f.flag("joints");
   if (f.has("hud")) hud = f.flag("hud");
+  if (f.has("forces")) forces = f.flag("forces");
+  if (f.has("joint_errors")) jointErrors = f.flag("joint_errors");
+  if (f.has("force_scale")) forceScale = f.number("force_scale", {0, 1e9});  // 0: automatic
 }
 
 void ViewChange::readHighlight(const Fields& f, const Scene& scene, const std::string& sceneName) {
@@ -222,6 +226,9 @@ void ViewChange::apply(Look& look) const {
   if (hud) look.view.hud = *hud;
   if (speedScale) look.view.speedScale = *speedScale;
   if (errorScale) look.view.errorScale = *errorScale;
+  if (forces) look.view.forces = *forces;
+  if (jointErrors) look.view.jointErrors = *jointErrors;
+  if (forceScale) look.view.forceScale = *forceScale;
   if (highlight) look.view.highlight = *highlight;
 }
 

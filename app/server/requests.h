@@ -66,8 +66,8 @@ struct ViewChange {
   void apply(render::Look& look) const;
 
   std::optional<render::ColourMode> colour;
-  std::optional<double> speedScale, errorScale;
-  std::optional<bool> contacts, joints, hud;
+  std::optional<double> speedScale, errorScale, forceScale;
+  std::optional<bool> contacts, joints, hud, forces, jointErrors;
   std::optional<std::vector<std::string>> highlight;
 };
 
