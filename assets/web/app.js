@@ -152,7 +152,9 @@ async function start() {
   bindMouse();
   setInterval(() => { if (S.stats && S.stats.playing) refreshTimeline(); }, 1000);
   window.addEventListener('pagehide', () => navigator.sendBeacon(sessionPath('/close')));
-  listRecordings();
+  // A server that keeps recordings says which it was given (`open`); one without has no Recordings box.
+  if ('open' in server) listRecordings();
+  else $('recordings-box').classList.add('hidden');
   if (recording && state.timeline && state.timeline.recorded) {
     const time = Number(query.get('time'));
     if (query.get('time') !== null && Number.isFinite(time)) await act('/scrub', { time });
@@ -663,7 +665,8 @@ function showInspect(j) {
     const body = rows.slice(0, MAX_ROWS).map((r, k) =>
       `<tr data-${attr}="${k}">${columns.map(([key]) => cell('td', key, r[key])).join('')}</tr>`).join('');
     const more = rows.length > MAX_ROWS ? `<tr><td colspan="${columns.length}">and ${rows.length - MAX_ROWS} more</td></tr>` : '';
-    return `<table class="list" data-${attr}s="${rows.length}"><caption>${rows.length} ${caption}</caption>${head}${body}${more}</table>`;
+    const counted = `${rows.length} ${rows.length === 1 ? caption.slice(0, -1) : caption}`;
+    return `<table class="list" data-${attr}s="${rows.length}"><caption>${counted}</caption>${head}${body}${more}</table>`;
   };
   box.innerHTML = j.panels.map((p) => `
     <div class="inspect-card" data-panel="${p.panel}">
