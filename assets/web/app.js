@@ -809,11 +809,17 @@ function showStats(st) {
   $('time').textContent = `t = ${p0.time.toFixed(2)} s`;
   const rt = $('realtime');
   const diverged = st.panels.some((p) => p.diverged);
-  if (diverged || st.status) {
+  // A status without a diverged panel is where playing stopped ("at the first kept step", "the end
+  // of the recording") or a drawing problem: said in the badge, not as a divergence.
+  if (diverged) {
     rt.className = 'badge bad';
     rt.textContent = 'paused: diverged';
     rt.title = st.status;
     if (st.status && !S.shownStatus) { showMessage(st.status); S.shownStatus = true; }
+  } else if (st.status && !st.playing) {
+    rt.className = /^cannot /.test(st.status) ? 'badge bad' : 'badge ok';
+    rt.textContent = `paused: ${st.status}`;
+    rt.title = st.status;
   } else if (st.seeking) {
     rt.className = 'badge slow';
     rt.textContent = 'seeking';

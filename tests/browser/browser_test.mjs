@@ -237,6 +237,11 @@ try {
   await page.click('#step-back');
   await until('one kept step back', async () => (await api('')).timeline.shown_step === back.shown_step - 1);
   check(true, 'the step-back button goes one kept step back');
+  await page.click('#reverse');
+  await until('playing backwards', async () => { const s = await api(''); return s.playing && s.timeline.shown < back.shown - 0.2; });
+  await page.click('#pause');
+  const here = await until('paused in the past', async () => { const s = await api(''); return !s.playing && s.timeline; });
+  check(here.shown < back.shown - 0.2 && here.shown > 0, `"back" plays backwards through the kept steps (to t = ${here.shown.toFixed(3)} s)`);
 
   console.log('inspector: click a body');
   const num6 = (v) => Number(v.toPrecision(6));
@@ -292,20 +297,20 @@ try {
   // A pixel on a dynamic body (the API's pick), with its neighbours on the same body.
   const W = 640, H = 360;
   let hit = null;
-  for (let y = 0.15; y < 0.95 && !hit; y += 0.04)
-    for (let x = 0.05; x < 0.95 && !hit; x += 0.03) {
-      const h = await post('/pick', { x: x * W, y: y * H });
+  for (let y = 20; y < H - 10 && !hit; y += 8)
+    for (let x = 10; x < W - 10 && !hit; x += 8) {
+      const h = await post('/pick', { x, y });
       if (!h.hit) continue;
-      const around = await Promise.all([[-3, 0], [3, 0], [0, -3], [0, 3]].map(([dx, dy]) => post('/pick', { x: x * W + dx, y: y * H + dy })));
-      if (around.every((a) => a.hit && a.name === h.name)) hit = { ...h, x: x * W, y: y * H };
+      const around = await Promise.all([[-2, 0], [2, 0], [0, -2], [0, 2]].map(([dx, dy]) => post('/pick', { x: x + dx, y: y + dy })));
+      if (around.every((a) => a.hit && a.name === h.name)) hit = { ...h, x, y };
     }
-  check(hit !== null, `a body under a pixel of the frame (${hit && hit.name} at ${hit && hit.x.toFixed(0)}, ${hit && hit.y.toFixed(0)})`);
+  check(hit !== null, `a body under a pixel of the frame (${hit && hit.name} at ${hit && hit.x}, ${hit && hit.y})`);
   const vb = await (await page.$('#view')).boundingBox();
   await page.mouse.click(vb.x + (hit.x * vb.width) / W, vb.y + (hit.y * vb.height) / H);
   await until(`the inspector to show ${hit.name}`, async () => (await page.textContent('#inspect-body')) === hit.name);
   const selectedState = await api('');
   check(selectedState.selected === hit.name, `a click selects ${hit.name} (the state's "selected")`);
-  check(!selectedState.playing && selectedState.timeline.shown_step === back.shown_step - 1, 'a click neither plays nor moves the timeline');
+  check(!selectedState.playing && selectedState.timeline.shown_step === here.shown_step, 'a click neither plays nor moves the timeline');
   const j1 = await inspectorAgrees('clicked');
   check(j1.panels[0].step === selectedState.timeline.shown_step, 'GET inspect is at the shown step');
   await page.click('#step');
