@@ -216,6 +216,26 @@ void writeCellHtml(std::ostream& h, const SceneResult& r, size_t i, const std::s
   if (!c.run.refused) h << "<br><span class=\"small\">" << fixed(c.run.cost.msPerStep, 3) << " ms/step</span>";
   if (!r.clips[i].empty())
     h << "<br><a href=\"clips/" << html(r.clips[i]) << "\">clip</a> <span class=\"small\">(panel " << r.panels[i] << ")</span>";
+  // With recordings (--record): "inspect" opens the scene's recordings side by side in the viewer,
+  // this cell's panel at its first failure; the page's script keeps it only where a server serves
+  // the atlas (substep serve --lab), since a file has no viewer behind it.
+  std::vector<std::string> recs;
+  int panel = -1;
+  for (size_t k = 0; k < r.cells.size(); ++k)
+    if (!r.cells[k].run.recording.empty() && recs.size() < 4) {
+      if (k == i) panel = static_cast<int>(recs.size());
+      recs.push_back(r.cells[k].run.recording);
+    }
+  if (panel < 0 && !c.run.recording.empty()) {  // beyond the first four: this one and the three before it
+    recs.assign({c.run.recording});
+    panel = 0;
+  }
+  if (panel >= 0) {
+    std::string list;
+    for (const std::string& x : recs) list += (list.empty() ? "" : ",") + x;
+    h << " <a class=\"inspect\" hidden data-recordings=\"" << html(list) << "\" data-panel=\"" << panel
+      << "\" href=\"#\">inspect</a>";
+  }
   h << "</td>";
 }
 
@@ -267,6 +287,16 @@ void writePage(const std::vector<SceneResult>& results, const std::vector<lab::M
     h << "<p>" << (changed ? std::to_string(changed) + " verdicts differ from" : "Every verdict agrees with")
       << " the expected table (<code>tests/data/atlas_expected.json</code>)" << (changed ? ": outlined in orange." : ".") << "</p>\n";
   writeChartsHtml(h, results);
+  // "inspect" links: to the viewer of the server that serves this page under /lab/ (docs/server.md).
+  h << "<script>\n"
+       "if (location.protocol.startsWith('http') && location.pathname.startsWith('/lab/')) {\n"
+       "  const dir = location.pathname.slice(5).replace(/[^/]*$/, '');\n"
+       "  for (const a of document.querySelectorAll('a.inspect')) {\n"
+       "    const recs = a.dataset.recordings.split(',').map(r => encodeURIComponent(dir + r)).join(',');\n"
+       "    a.href = '/?recordings=' + recs + '&focus=' + a.dataset.panel;\n"
+       "    a.hidden = false;\n"
+       "  }\n"
+       "}\n</script>\n";
   h << "</body></html>\n";
   writeText(path, h.str());
 }

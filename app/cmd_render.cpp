@@ -224,8 +224,15 @@ void printReport(const RenderSession& session, const RenderCmdOptions& o, const 
 }
 
 int runRender(const RenderCmdOptions& o) {
-  const RenderPlan p = planRender(o);
-  RenderSession session = o.draw.makeSession(std::make_shared<const Scene>(load(o.draw.scene)), true);
+  RenderPlan p = planRender(o);
+  std::optional<OpenedRecording> rec;
+  if (isRecordingPath(o.draw.scene)) {
+    rec = openRecordingFile(o.draw.scene);
+    // A recording's video covers the recording unless told otherwise.
+    if (!o.seconds && p.kind != OutputKind::Png) p.frames = std::max(1LL, std::llround(rec->seconds * o.fps));
+  }
+  RenderSession session = rec ? o.draw.makeRecordedSession(*rec)
+                              : o.draw.makeSession(std::make_shared<const Scene>(load(o.draw.scene)), true);
   o.draw.printHeader(session);
   FrameTimes t;
   const double wall0 = nowSeconds();
@@ -245,11 +252,14 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
       "(ffmpeg, libx264, yuv420p). Physics steps at its own dt; frames are taken at --fps.\n"
       "Comparisons: --compare a2:m=4,a5:n=4 (or --panels) draws the scene under each setting in a grid (2 to 4\n"
       "panels); settings after the algorithm are key=value separated by ':' (any key or alias of `substep\n"
-      "settings`); other solver options apply to every panel.");
+      "settings`); other solver options apply to every panel.\n"
+      "Recordings: `substep render out/x.rec -o x.mp4` draws a recording (substep run --record) without stepping,\n"
+      "with its own panels and settings (docs/recordings.md).");
   opt->draw.add(*cmd, "--compare,--panels", "1280x720")->required();
   cmd->add_option("-o,--output", opt->output, "Output: FILE.png (one frame), FILE.mp4 (video) or a folder (PNG sequence)")
       ->required();
-  auto* seconds = cmd->add_option("--seconds", opt->seconds, "Length of a video or sequence, simulated [s] (default 10)")
+  auto* seconds = cmd->add_option("--seconds", opt->seconds,
+                                  "Length of a video or sequence, simulated [s] (default 10; a recording's: its length)")
                       ->check(CLI::Range(1e-6, 1e5));
   auto* at = cmd->add_option("--at", opt->at, "Simulated time of a single PNG frame [s] (default 0)")
                  ->check(CLI::Range(0.0, 1e5));

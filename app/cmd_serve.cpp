@@ -2,6 +2,7 @@
 // loopback unless told otherwise, prints its address, answers until Ctrl-C or SIGTERM.
 #include "app/commands.h"
 #include "app/common.h"
+#include "app/recordings.h"
 #include "app/render_options.h"
 #include "app/server.h"
 
@@ -15,6 +16,7 @@ namespace substep::app {
 void addServeCommand(CLI::App& app, std::function<int()>& action) {
   auto o = std::make_shared<ServerOptions>();
   auto size = std::make_shared<std::string>("1280x720");
+  auto uploadMb = std::make_shared<int>(512);
   CLI::App* cmd = app.add_subcommand("serve", "Serve the interactive web page: drive and watch scenes from a browser");
   cmd->footer(
       "\nOpen the printed address in a browser. On a remote machine, forward the port first:\n"
@@ -41,13 +43,25 @@ void addServeCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--quality", o->jpegQuality, "JPEG quality of the stream, 1-100 (default 80)")->check(CLI::Range(1, 100));
   cmd->add_option("--web", o->webRoot, "Folder of the page's files (default: the assets' web/)");
   cmd->add_option("--scenes", o->scenesDir, "Folder of the scene files it offers (default: the assets' scenes/)");
+  cmd->add_option("--open", o->open,
+                  "A recording (substep run --record) to replay; the page opens it (repeat for more)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--max-upload-mb", *uploadMb, "Largest recording the page may upload [MB] (default 512)")
+      ->check(CLI::Range(1, 65536));
   cmd->add_option("--lab", o->labDir, "Folder of the lab's charts and atlas, linked from the page and served under /lab/");
-  cmd->callback([o, size, &action] {
-    action = [o, size]() -> int {
+  cmd->callback([o, size, uploadMb, &action] {
+    action = [o, size, uploadMb]() -> int {
       parseFrameSize(*size, o->width, o->height);
       if (o->width > 1920 || o->height > 1080 || o->width < 64 || o->height < 64)
         throw UsageError("--size " + *size + ": expected 64x64 to 1920x1080");
       if (o->labDir.empty() && std::filesystem::is_directory("out/lab")) o->labDir = "out/lab";
+      o->maxUpload = static_cast<size_t>(*uploadMb) << 20;
+      // Each recording read whole now: a damaged one is refused before the server starts.
+      for (const std::string& r : o->open) {
+        const OpenedRecording rec = openRecordingFile(r, o->maxUpload);
+        std::cout << "substep serve: --open " << r << ": " << rec.scene->file << ", " << rec.panels.size() << " panel"
+                  << (rec.panels.size() == 1 ? "" : "s") << ", " << rec.seconds << " s" << std::endl;
+      }
       ::signal(SIGPIPE, SIG_IGN);  // a viewer gone mid-frame is an error return, not the end of the server
       InterruptGuard interrupts;
       Server server(*o);

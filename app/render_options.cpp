@@ -24,7 +24,7 @@ int smallNumber(const std::string& s) {
 
 CLI::Option* RenderOptions::add(CLI::App& cmd, const std::string& panelsFlags, const std::string& sizeDefault) {
   size = sizeDefault;
-  CLI::Option* sceneOpt = cmd.add_option("scene", scene, "Scene file (JSON), e.g. assets/scenes/pyramid.json");
+  CLI::Option* sceneOpt = cmd.add_option("scene", scene, "Scene file (JSON), e.g. assets/scenes/pyramid.json, or a recording (.rec) to replay");
   solver.add(cmd);
   cmd.add_option("--size", size, "Frame size WIDTHxHEIGHT (default " + sizeDefault + ", at most 7680x4320)");
   auto* compare = cmd.add_option(panelsFlags, panels, "Draw 2-4 settings side by side, e.g. a2:m=4,a5:n=4 (see below)");
@@ -164,6 +164,18 @@ RenderSession RenderOptions::makeSession(std::shared_ptr<const Scene> scene, boo
     const std::string& name = setups[static_cast<size_t>(e.panel)].name;
     throw UsageError((name.empty() ? std::string() : "--compare \"" + name + "\": ") + e.what());
   }
+}
+
+RenderSession RenderOptions::makeRecordedSession(const OpenedRecording& rec) const {
+  if (!panels.empty() || !solver.overrides().empty())
+    throw UsageError(scene + ": a recording replays the settings it was recorded with; drop --compare and the solver options");
+  RenderSession s(rec.scene, rec.panels, look(*rec.scene, false));
+  try {
+    s.setRecorded(rec.scene, rec.panels, rec.frames);
+  } catch (const PanelError& e) {
+    throw UsageError(scene + ": panel " + std::to_string(e.panel) + ": " + e.what());
+  }
+  return s;
 }
 
 std::unique_ptr<GlRenderer> RenderOptions::makeRenderer(int width, int height) const {

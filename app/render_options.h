@@ -3,6 +3,8 @@
 // renderer, and the stepping of a single frame far into a run with progress and Ctrl-C.
 #pragma once
 
+#include "app/recordings.h"
+
 #include "app/common.h"
 #include "render/gl_renderer.h"
 #include "render/session.h"
@@ -38,6 +40,9 @@ struct RenderOptions {
   // The session of the scene: the panels (one, or one per --compare setting over the shared
   // solver options), the camera, what is drawn; `stepCost` puts the measured step cost in the HUD.
   render::RenderSession makeSession(std::shared_ptr<const Scene> scene, bool stepCost) const;
+  // A recording's session instead (`scene` names a .rec): its panels and frames, replayed, not
+  // stepped; solver options and --compare are refused (a recording has its own). UsageError.
+  render::RenderSession makeRecordedSession(const OpenedRecording& rec) const;
   render::Look look(const Scene& scene, bool stepCost) const;           // the camera and what is drawn
   std::vector<render::PanelSetup> panelSetups(const Scene& scene) const;  // a panel's settings each
   std::unique_ptr<render::GlRenderer> makeRenderer(int width, int height) const;

@@ -67,7 +67,9 @@ Server::Server(ServerOptions options) : impl_(std::make_unique<Impl>(std::move(o
   // requests at once.
   const size_t threads = static_cast<size_t>(4 * m.o.maxSessions + 16);
   m.http.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
-  m.http.set_payload_max_length(m.o.maxBody);
+  // Uploads are the large bodies; JSON bodies keep their own limit (web::Fields).
+  m.http.set_payload_max_length(std::max(m.o.maxBody, m.o.maxUpload));
+  web::setJsonBodyLimit(m.o.maxBody);
   // SO_REUSEADDR only: httplib's default adds SO_REUSEPORT, with which a second server on the
   // same port starts too and takes half the connections.
   m.http.set_socket_options([](socket_t sock) {

@@ -9,6 +9,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace substep::app {
 
@@ -26,7 +27,9 @@ struct ServerOptions {
   std::string webRoot;           // the page's files (default: the assets' web/)
   std::string scenesDir;         // scene files listed and loaded by name (default: the assets' scenes/)
   std::string labDir;            // the lab's charts and atlas, served under /lab/ ("" for none)
-  size_t maxBody = 64 * 1024;    // request bodies larger are refused with 413
+  size_t maxBody = 64 * 1024;    // JSON request bodies larger are refused with 413
+  size_t maxUpload = size_t{512} << 20;  // an uploaded recording (POST /api/recordings) [bytes]
+  std::vector<std::string> open; // recordings offered by their file name (substep serve --open)
 };
 
 class Server {

@@ -1,6 +1,7 @@
 // substep serve's API (docs/server.md), through httplib's client against the built binary on a
 // free loopback port: every call, bad parameters of every kind, path traversal, the session cap,
 // expiry, a diverging session, SIGINT.
+#include "physics/recording.h"
 #include "physics/settings.h"
 #include "render/image.h"
 #include "run_substep.h"
@@ -270,12 +271,12 @@ TEST(Server, BadParametersNameTheParameter) {
       {s5 + "/view", R"({"contacts": "yes"})", "contacts: expected true or false, got \"yes\""},
       {s5 + "/view", R"({"highlight": ["nobody"]})", "highlight: expected names of bodies of pyramid, got \"nobody\""},
       // play state
-      {s5 + "/play", R"({"speed": 0})", "speed: expected a number in [0.01, 10], got 0"},
-      {s5 + "/play", R"({"speed": 100})", "speed: expected a number in [0.01, 10], got 100"},
+      {s5 + "/play", R"({"speed": 0})", "speed: expected 0.01 to 10 simulated seconds per second (negative: backwards), got 0"},
+      {s5 + "/play", R"({"speed": 100})", "speed: expected a number in [-10, 10], got 100"},
       {s5 + "/pause", R"({"now": true})", "unknown field \"now\"; expected none"},
-      {s5 + "/step", R"({"count": 0})", "count: expected an integer in [1, 600], got 0"},
-      {s5 + "/step", R"({"count": 601})", "count: expected an integer in [1, 600], got 601"},
-      {s5 + "/step", R"({"count": 1.5})", "count: expected an integer in [1, 600], got 1.5"},
+      {s5 + "/step", R"({"count": 0})", "count: expected 1 to 600 steps, negative to go back"},
+      {s5 + "/step", R"({"count": 601})", "count: expected an integer in [-600, 600], got 601"},
+      {s5 + "/step", R"({"count": 1.5})", "count: expected an integer in [-600, 600], got 1.5"},
       {s5 + "/seek", R"({"time": -1})", "time: expected a number in [0, 3600], got -1"},
       {s5 + "/seek", R"({})", "time: expected a number in [0, 3600]"},
       // picking and pushing
@@ -756,8 +757,8 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
   for (const json& m : tl.body["markers"]) penetration = penetration || m["kind"] == "penetration";
   EXPECT_TRUE(penetration) << tl.text;
 
-  // Body "box_0" at the newest step, then at step 30.
-  const Answer selected = post(*c, s + "/select", {{"body", "box_0"}});
+  // Body "col_0_0_9" at the newest step, then at step 30.
+  const Answer selected = post(*c, s + "/select", {{"body", "col_0_0_9"}});
   ASSERT_EQ(selected.status, 200) << selected.text;
   ASSERT_EQ(selected.body["panels"].size(), 2u);
   const json liveBox = selected.body["panels"][0];
@@ -766,13 +767,13 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
   ASSERT_EQ(scrubbed.status, 200) << scrubbed.text;
   EXPECT_EQ(scrubbed.body["timeline"]["live"], false);
   EXPECT_EQ(scrubbed.body["timeline"]["shown_step"], 30);
-  EXPECT_EQ(scrubbed.body["selected"], "box_0");
+  EXPECT_EQ(scrubbed.body["selected"], "col_0_0_9");
   const json st = stats(*c, id);
   EXPECT_EQ(st["panels"][0]["steps"], 90);  // nothing stepped again
   EXPECT_EQ(st["shown_step"], 30);
   const Answer past = call(*c, "GET", s + "/inspect");
   ASSERT_EQ(past.status, 200) << past.text;
-  EXPECT_EQ(past.body["body"], "box_0");
+  EXPECT_EQ(past.body["body"], "col_0_0_9");
   EXPECT_EQ(past.body["panels"][0]["step"], 30);
   EXPECT_NE(past.body["panels"][0]["position"], liveBox["position"]);  // it was falling then
   EXPECT_EQ(post(*c, s + "/scrub", {{"by", -5}}).body["timeline"]["shown_step"], 25);
@@ -781,7 +782,7 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
   EXPECT_EQ(stats(*c, id)["panels"][0]["steps"], 90);
 
   // The past cannot be pushed: 409, saying how to go on.
-  const Answer push = post(*c, s + "/push", {{"body", "box_0"}, {"impulse", {0, 3, 0}}});
+  const Answer push = post(*c, s + "/push", {{"body", "col_0_0_9"}, {"impulse", {0, 3, 0}}});
   EXPECT_EQ(push.status, 409) << push.text;
   EXPECT_NE(push.text.find("go live first"), std::string::npos) << push.text;
 
@@ -809,8 +810,72 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
 
   // Live again: the newest step, and a push works.
   EXPECT_EQ(post(*c, s + "/scrub", {{"live", true}}).body["timeline"]["shown_step"], 90);
-  EXPECT_EQ(post(*c, s + "/push", {{"body", "box_0"}, {"impulse", {0, 3, 0}}}).status, 200);
+  EXPECT_EQ(post(*c, s + "/push", {{"body", "col_0_0_9"}, {"impulse", {0, 3, 0}}}).status, 200);
   EXPECT_EQ(post(*c, s + "/scrub", json::object()).status, 400);
   EXPECT_EQ(post(*c, s + "/select", {{"body", "nobody"}}).status, 400);
   EXPECT_EQ(post(*c, s + "/select", {{"body", nullptr}}).body["body"], nullptr);
+}
+
+// A recording replayed: offered by --open, opened as a session that never steps, its inspector's
+// numbers the recording's own to the last bit; uploads; damaged recordings refused with the reason.
+TEST(Server, RecordingsReplayAsRecorded) {
+  const fs::path dir = scratchFolder("server");
+  fs::create_directories(dir);
+  const std::string rec = (dir / "ragdoll.rec").string();
+  ASSERT_EQ(runSubstep("run assets/scenes/ragdoll.json --seconds 1 -q --record " + rec).status, 0);
+  const substep::Recording file = substep::readRecording(rec);
+  std::ifstream in(rec, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  const std::string cut = (dir / "cut.rec").string();
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() - 100);
+
+  // A damaged --open stops the server before it starts.
+  const Outcome bad = runSubstep("serve --port 0 --open " + cut);
+  EXPECT_EQ(bad.status, 2) << bad.output;
+  EXPECT_NE(bad.output.find(cut + ": truncated at byte"), std::string::npos) << bad.output;
+
+  ServerProcess srv(small({"--open", rec}));
+  auto c = srv.client();
+  EXPECT_EQ(call(*c, "GET", "/api/server").body["open"], json::array({"ragdoll.rec"}));
+  EXPECT_EQ(call(*c, "GET", "/api/recordings").body["recordings"][0]["name"], "ragdoll.rec");
+  Answer opened = post(*c, "/api/sessions", {{"recording", "ragdoll.rec"}});
+  ASSERT_EQ(opened.status, 201) << opened.text;
+  const std::string sid = opened.body["id"].get<std::string>(), s = "/api/sessions/" + sid;
+  EXPECT_EQ(opened.body["timeline"]["recorded"], true);
+  EXPECT_EQ(opened.body["timeline"]["kept"], 61);
+  EXPECT_EQ(opened.body["timeline"]["shown_step"], 0);
+  ASSERT_EQ(post(*c, s + "/step", {{"count", 25}}).body["timeline"]["shown_step"], 25);
+  const std::string body = "ragdoll_0_head";
+  const Answer ins = post(*c, s + "/select", {{"body", body}});
+  ASSERT_EQ(ins.status, 200) << ins.text;
+  const json& p = ins.body["panels"][0];
+  const size_t b = static_cast<size_t>(substep::recordingScene(file).model.bodyIndex(body));
+  const substep::BodyState& want = file.panels[0][25].state.bodies[b];
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(p["position"][k].get<double>(), want.x[k]);  // bit for bit through the JSON
+    EXPECT_EQ(p["velocity"][k].get<double>(), want.v[k]);
+  }
+  EXPECT_EQ(p["orientation"][0].get<double>(), want.q.w());
+  // Playing runs to the recording's end and stops there; nothing is pushed into a recording.
+  ASSERT_EQ(post(*c, s + "/play", {{"speed", 10}}).status, 200);
+  const json end = waitStats(*c, sid, [](const json& j) { return !j["playing"].get<bool>(); });
+  EXPECT_EQ(end["shown_step"], 60);
+  EXPECT_NE(end["status"].get<std::string>().find("end of the recording"), std::string::npos) << end.dump();
+  EXPECT_EQ(end["panels"][0]["steps"], 0);  // replayed, never stepped
+  EXPECT_EQ(post(*c, s + "/push", {{"body", body}, {"impulse", {0, 1, 0}}}).status, 409);
+  EXPECT_EQ(post(*c, s + "/settings", {{"settings", {{"n", 8}}}}).status, 409);
+
+  // Uploads: a damaged one is refused with its reason; a whole one opens.
+  httplib::Result up = c->Post("/api/recordings?name=cut.rec", bytes.substr(0, bytes.size() - 100), "application/octet-stream");
+  ASSERT_TRUE(up);
+  EXPECT_EQ(up->status, 400);
+  EXPECT_NE(up->body.find("truncated at byte"), std::string::npos) << up->body;
+  up = c->Post("/api/recordings?name=mine.rec", bytes, "application/octet-stream");
+  ASSERT_TRUE(up);
+  ASSERT_EQ(up->status, 201) << up->body;
+  const std::string name = json::parse(up->body)["name"];
+  EXPECT_EQ(post(*c, "/api/sessions", {{"recordings", {"ragdoll.rec", name}}}).body["panels"].size(), 2u);
+  EXPECT_EQ(post(*c, "/api/sessions", {{"recording", "nope.rec"}}).status, 400);
+  EXPECT_EQ(post(*c, "/api/sessions", {{"recording", "../../etc/passwd"}}).status, 400);
+  EXPECT_EQ(post(*c, "/api/sessions", {{"recording", "ragdoll.rec"}, {"scene", "stack"}}).status, 400);
 }

@@ -7,6 +7,8 @@
 #include "physics/settings_json.h"
 #include "render/scene_builder.h"
 
+#include <filesystem>
+
 namespace substep::app::web {
 
 using namespace substep::render;
@@ -56,7 +58,12 @@ json serverJson(const ServerOptions& o, size_t sessions, bool clips, bool lab) {
           {"idle_timeout", o.idleTimeout},
           {"history", o.history},
           {"clips", clips},
-          {"lab", lab}};
+          {"lab", lab},
+          {"open", [&] {
+             json names = json::array();
+             for (const std::string& p : o.open) names.push_back(std::filesystem::path(p).filename().string());
+             return names;
+           }()}};
 }
 
 // --- a session --------------------------------------------------------------------------------
@@ -67,7 +74,7 @@ json stateJson(WebSession& s) {
     json panels = json::array();
     for (int i = 0; i < r.panelCount(); ++i) {
       const Panel& p = r.panel(i);
-      panels.push_back({{"method", (s.panels[static_cast<size_t>(i)].user).specText()},
+      panels.push_back({{"method", s.panels[static_cast<size_t>(i)].method()},
                         {"settings", settingsJson(p.settings())},
                         {"line", settingsLine(p.settings())},
                         {"time", p.state().time},

@@ -9,6 +9,7 @@
 #include "render/image.h"
 
 #include <filesystem>
+#include <sstream>
 
 namespace substep::app::web {
 
@@ -105,7 +106,13 @@ void Handlers::lab(const Request&, Response& res) { sendJson(res, {{"files", lab
 // --- sessions ---
 
 void Handlers::create(const Request& req, Response& res) {
-  const Fields f(req, {"scene", "method", "methods", "size", "fps", "play", "speed"});
+  const Fields f(req, {"scene", "method", "methods", "size", "fps", "play", "speed", "recording", "recordings", "focus"});
+  if (f.has("recording") || f.has("recordings")) {
+    for (const char* k : {"scene", "method", "methods", "play", "speed", "fps"})
+      if (f.has(k)) throw HttpError(400, std::string(k) + ": a recorded session replays its recordings; give only recording(s), size and focus");
+    return createRecorded(f, res);
+  }
+  if (f.has("focus")) throw HttpError(400, "focus: only with recording or recordings");
   auto s = std::make_shared<WebSession>();
   s->sceneName = sceneName(f);
   s->scene = sessions_.scene(s->sceneName, "scene");
@@ -151,9 +158,13 @@ void Handlers::settings(WebSession& s, const Request& req) {
   }
   if (!f.has("method") && !f.has("settings")) throw HttpError(400, "method, settings: give a method or settings to change");
   const std::vector<PanelSetup> ps = setups(*s.scene, next);  // every panel checked before any changes
-  s.live->change([&](RenderSession& r, Look&) {
-    for (int i : targets) r.setSettings(i, ps[static_cast<size_t>(i)].settings);
-  });
+  try {
+    s.live->change([&](RenderSession& r, Look&) {
+      for (int i : targets) r.setSettings(i, ps[static_cast<size_t>(i)].settings);
+    });
+  } catch (const std::invalid_argument& e) {  // the past or a recording, which cannot change
+    throw HttpError(409, e.what());
+  }
   s.panels = std::move(next);
 }
 
@@ -259,7 +270,7 @@ namespace {
 
 std::vector<std::string> methodsOf(const WebSession& s) {
   std::vector<std::string> m;
-  for (const auto& p : s.panels) m.push_back(p.user.specText());
+  for (const auto& p : s.panels) m.push_back(p.method());
   return m;
 }
 
@@ -280,6 +291,99 @@ int bodyNamed(const WebSession& s, const std::string& name, const std::string& f
 }
 
 }  // namespace
+
+// Where a recorded session opens when asked to focus on panel k (an atlas cell): its first failure
+// (a criterion's or a divergence), else its worst of the scene's error measure; none: t = 0.
+std::optional<std::pair<double, std::string>> focusOf(const WebSession& s, int panel) {
+  const json markers = s.live->read([&](const RenderSession& r, const Look&) { return s.timeline->markersJson(r); });
+  for (const json& m : markers)
+    if (m["panel"] == panel && (m["kind"] == "criterion" || m["kind"] == "diverged"))
+      return std::make_pair(m["time"].get<double>(), m["body"].is_string() ? m["body"].get<std::string>() : "");
+  const std::string kind = s.scene->model.joints.empty() ? "penetration" : "joint_error";
+  for (const std::string& k : {kind, std::string("penetration"), std::string("speed")})
+    if (const auto w = s.timeline->worst(k, panel))
+      return std::make_pair(w->second.time,
+                            w->second.body >= 0 ? s.scene->model.bodies[static_cast<size_t>(w->second.body)].name : "");
+  return std::nullopt;
+}
+
+void Handlers::recordings(const Request&, Response& res) {
+  json list = json::array();
+  for (const Sessions::KnownRecording& k : sessions_.recordings()) list.push_back({{"name", k.name}, {"bytes", k.bytes}});
+  sendJson(res, {{"recordings", list}});
+}
+
+void Handlers::uploadRecording(const Request& req, Response& res) {
+  if (req.body.empty()) throw HttpError(400, "body: expected the bytes of a recording (.rec), got none");
+  const std::string name = sessions_.upload(req.body, req.has_param("name") ? req.get_param_value("name") : "upload.rec");
+  sendJson(res, {{"name", name}}, 201);
+}
+
+void Handlers::createRecorded(const Fields& f, Response& res) {
+  std::vector<std::string> names;
+  if (f.has("recording") && f.has("recordings")) throw HttpError(400, "recording: give recording or recordings, not both");
+  if (f.has("recording")) names.push_back(f.text("recording", 600));
+  if (f.has("recordings")) {
+    const json& v = f.at("recordings");
+    if (v.is_string()) {
+      std::string list = v.get<std::string>(), item;
+      std::stringstream ss(list);
+      while (std::getline(ss, item, ',')) names.push_back(item);
+    } else if (v.is_array()) {
+      for (const json& x : v) {
+        if (!x.is_string()) throw HttpError(400, "recordings: expected names (strings), got " + quote(x));
+        names.push_back(x.get<std::string>());
+      }
+    } else {
+      throw HttpError(400, "recordings: expected a list of names, or names separated by commas");
+    }
+  }
+  if (names.empty() || static_cast<int>(names.size()) > kMaxPanels)
+    throw HttpError(400, "recordings: expected 1 to " + std::to_string(kMaxPanels) + " recordings");
+  // The panels of every recording, side by side on one timeline: of one scene.
+  auto s = std::make_shared<WebSession>();
+  std::vector<PanelSetup> setups;
+  std::vector<std::vector<Snapshot>> frames;
+  double seconds = 0;
+  for (const std::string& n : names) {
+    const auto r = sessions_.recording(n, "recording");
+    if (!s->scene) {
+      s->scene = r->scene;
+    } else if (r->scene->text != s->scene->text) {
+      throw HttpError(400, "recordings: " + n + " is of another scene than " + names.front() + "; side by side, recordings share a scene");
+    }
+    for (size_t i = 0; i < r->panels.size(); ++i) {
+      setups.push_back(r->panels[i]);
+      frames.push_back(r->frames[i]);
+      WebSession::PanelState ps;
+      ps.recorded = r->panels[i].name.empty() ? fs::path(n).stem().string() : r->panels[i].name;
+      setups.back().name = ps.recorded;
+      s->panels.push_back(ps);
+    }
+    seconds = std::max(seconds, r->seconds);
+  }
+  if (static_cast<int>(setups.size()) > kMaxPanels)
+    throw HttpError(400, "recordings: " + std::to_string(setups.size()) + " panels in all; at most " + std::to_string(kMaxPanels));
+  if (setups.size() == 1) setups[0].name.clear();
+  s->sceneName = fs::path(names.front()).stem().string();
+  s->timeline = std::make_shared<SessionTimeline>(seconds);
+  LiveConfig c = sessions_.config();
+  if (f.has("size")) frameSize(f, c.width, c.height);
+  Look look;
+  look.camera = chooseCamera(*s->scene, {});
+  const auto scene = s->scene;
+  sessions_.open(s, setups, look, c, std::nullopt,
+                 [&](RenderSession& r, Look&) { r.setRecorded(scene, setups, std::move(frames)); });
+  if (f.has("focus")) {
+    const int panel = f.integer("focus", {0, static_cast<int>(setups.size()) - 1});
+    std::lock_guard<std::mutex> lk(s->m);
+    if (const auto at = focusOf(*s, panel)) {
+      s->live->seek(at->first);
+      if (!at->second.empty()) selectBody(*s, s->scene->model.bodyIndex(at->second));
+    }
+  }
+  sendJson(res, stateJson(*s), 201);
+}
 
 void Handlers::timeline(const Request& req, Response& res) {
   const auto s = session(req);

@@ -25,6 +25,10 @@ class Handlers {
   void server(const Request&, Response& res);
   void lab(const Request&, Response& res);
 
+  // Recordings: those the server can open, an upload.
+  void recordings(const Request& req, Response& res);
+  void uploadRecording(const Request& req, Response& res);
+
   // Sessions.
   void create(const Request& req, Response& res);
   void state(const Request& req, Response& res);
@@ -75,6 +79,8 @@ class Handlers {
  private:
   // The clip that matches[2] of the path numbers, of the session `s` is set to.
   render::ClipInfo clipOf(const Request& req, std::shared_ptr<WebSession>& s);
+  // POST /api/sessions with "recording" or "recordings": a recorded session.
+  void createRecorded(const Fields& f, Response& res);
   json labFiles() const;
 
   const ServerOptions& o_;

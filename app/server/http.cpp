@@ -1,6 +1,8 @@
 // The HTTP plumbing of `substep serve`: see http.h.
 #include "app/server/http.h"
 
+#include <atomic>
+
 #include "physics/utf8.h"
 
 #include "app/common.h"
@@ -34,7 +36,15 @@ std::string joined(const std::vector<std::string>& v) {
 
 // --- request fields ---
 
+namespace {
+std::atomic<size_t> jsonBodyLimit{64 * 1024};
+}
+
+void setJsonBodyLimit(size_t bytes) { jsonBodyLimit = bytes; }
+
 Fields::Fields(const Request& req, const std::vector<std::string>& allowed) {
+  if (req.body.size() > jsonBodyLimit)
+    throw HttpError(413, "the request body is larger than " + std::to_string(jsonBodyLimit.load()) + " bytes");
   if (req.body.find_first_not_of(" \t\r\n") == std::string::npos) {
     j_ = json::object();
   } else {

@@ -60,6 +60,8 @@ class Fields {
 };
 
 void sendJson(Response& res, const json& j, int status = 200);
+// The largest JSON body Fields reads (413 beyond); the server's --max-body. Set once at start.
+void setJsonBodyLimit(size_t bytes);
 // {"error": message}, the message made valid UTF-8 whatever it quotes (a JSON parser's message
 // quotes the bytes it read; other layers cut values after so many bytes), so that an error can
 // always be answered: dump() throws on invalid UTF-8.

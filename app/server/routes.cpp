@@ -31,6 +31,9 @@ void addRoutes(Router& router, Handlers& h) {
       {"GET", "/api/server", answer(&H::server)},
       {"GET", "/api/lab", answer(&H::lab)},
 
+      {"GET", "/api/recordings", answer(&H::recordings)},
+      {"POST", "/api/recordings", answer(&H::uploadRecording)},
+
       {"POST", "/api/sessions", answer(&H::create)},
       {"GET", sid, answer(&H::state)},
       {"DELETE", sid, answer(&H::close)},

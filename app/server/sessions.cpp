@@ -5,7 +5,10 @@
 
 #include <malloc.h>
 
+#include <algorithm>
+#include <cctype>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <random>
 
@@ -69,6 +72,93 @@ std::shared_ptr<const Scene> Sessions::scene(const std::string& name, const std:
 }
 
 // --- sessions ---
+
+namespace {
+
+constexpr size_t kCachedRecordings = 4;  // opened recordings kept (a ragdoll pile's 10 s: about 100 MB)
+
+// A name as part of a file name: letters, digits, '.', '-', '_'.
+std::string safeFileName(const std::string& name) {
+  std::string s = fs::path(name).filename().string().substr(0, 80);
+  for (char& c : s)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-' && c != '_') c = '_';
+  return s.empty() ? "recording.rec" : s;
+}
+
+}  // namespace
+
+std::vector<Sessions::KnownRecording> Sessions::recordings() const {
+  std::vector<KnownRecording> list;
+  std::error_code ec;
+  for (const std::string& path : o_.open)
+    list.push_back({fs::path(path).filename().string(), path, static_cast<long long>(fs::file_size(path, ec))});
+  if (!o_.labDir.empty())
+    for (auto it = fs::recursive_directory_iterator(o_.labDir, ec); !ec && it != fs::recursive_directory_iterator();
+         it.increment(ec)) {
+      if (it->path().extension() != ".rec") continue;
+      const std::string rel = fs::relative(it->path(), o_.labDir, ec).string();
+      const std::string file = staticFile(o_.labDir, rel);
+      if (!file.empty()) list.push_back({rel, file, static_cast<long long>(fs::file_size(file, ec))});
+      if (list.size() >= 500) break;
+    }
+  {
+    std::lock_guard<std::mutex> lk(recordingsM_);
+    list.insert(list.end(), uploads_.begin(), uploads_.end());
+  }
+  std::sort(list.begin(), list.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
+  return list;
+}
+
+std::shared_ptr<const OpenedRecording> Sessions::recording(const std::string& name, const std::string& field) {
+  {
+    std::lock_guard<std::mutex> lk(recordingsM_);
+    for (const auto& [n, r] : recordingCache_)
+      if (n == name) return r;
+  }
+  std::string path;
+  for (const KnownRecording& k : recordings())
+    if (k.name == name) path = k.path;
+  if (path.empty())
+    throw HttpError(400, field + ": no recording " + quote(json(utf8Prefix(name, 200))) +
+                             " (GET /api/recordings lists them: substep serve --open FILE, the lab folder's .rec files, uploads)");
+  std::shared_ptr<const OpenedRecording> r;
+  try {
+    r = std::make_shared<const OpenedRecording>(openRecording(readRecording(path, o_.maxUpload)));
+  } catch (const std::exception& e) {  // RecordingError, a scene that no longer parses
+    throw HttpError(400, field + ": " + validUtf8(e.what()));
+  }
+  std::lock_guard<std::mutex> lk(recordingsM_);
+  recordingCache_.emplace_back(name, r);
+  if (recordingCache_.size() > kCachedRecordings) recordingCache_.erase(recordingCache_.begin());
+  return r;
+}
+
+std::string Sessions::upload(const std::string& bytes, const std::string& fileName) {
+  const std::string shown = safeFileName(fileName);
+  std::shared_ptr<const OpenedRecording> r;
+  try {
+    r = std::make_shared<const OpenedRecording>(openRecording(parseRecording(bytes, shown)));
+  } catch (const std::exception& e) {
+    throw HttpError(400, "body: " + validUtf8(e.what()));
+  }
+  std::lock_guard<std::mutex> lk(recordingsM_);
+  const std::string name = "upload/" + std::to_string(nextUpload_++) + "-" + shown;
+  const fs::path dir = fs::path(scratch_) / "uploads";
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  const fs::path file = dir / fs::path(name).filename();
+  {
+    std::ofstream out(file.string() + ".part", std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (!out) throw HttpError(500, "cannot keep the upload in " + dir.string());
+  }
+  fs::rename(file.string() + ".part", file, ec);
+  if (ec) throw HttpError(500, "cannot keep the upload in " + dir.string() + ": " + ec.message());
+  uploads_.push_back({name, file.string(), static_cast<long long>(bytes.size())});
+  recordingCache_.emplace_back(name, r);
+  if (recordingCache_.size() > kCachedRecordings) recordingCache_.erase(recordingCache_.begin());
+  return name;
+}
 
 LiveConfig Sessions::config() const {
   LiveConfig c;

@@ -7,6 +7,7 @@
 
 #include "app/server.h"
 #include "app/server/http.h"
+#include "app/recordings.h"
 #include "app/server/inspect.h"
 #include "render/live_session.h"
 
@@ -33,6 +34,8 @@ using render::PanelSetup;
 struct WebSession {
   struct PanelState {
     SolverOverrides user;  // the method's settings and the user's changes over the scene's
+    std::string recorded;  // a recorded panel: its method as the recording names it
+    std::string method() const { return recorded.empty() ? user.specText() : recorded; }
   };
   std::string id;
   std::mutex m;  // scene, panels (the live session has its own lock)
@@ -58,6 +61,19 @@ class Sessions {
   // A scene by name, loaded once; HttpError 400 naming `field` for a name not in the folder,
   // 500 for a file that does not load.
   std::shared_ptr<const Scene> scene(const std::string& name, const std::string& field);
+
+  // The recordings it can open, by name: --open files (their file name), the lab folder's .rec
+  // files (their path in it) and uploads ("upload/N-name.rec"). Sorted, at most 500.
+  struct KnownRecording {
+    std::string name, path;
+    long long bytes = 0;
+  };
+  std::vector<KnownRecording> recordings() const;
+  // A recording by name, read once (the last few are kept); HttpError 400 naming `field` for an
+  // unknown name or a damaged file (the reader's reason).
+  std::shared_ptr<const OpenedRecording> recording(const std::string& name, const std::string& field);
+  // An uploaded recording: checked whole, kept in the scratch folder; its name. HttpError 400.
+  std::string upload(const std::string& bytes, const std::string& fileName);
 
   // What a new session's live session starts from: the server's frame size, fps, JPEG quality,
   // history and ffmpeg, and the draw and encode gates all sessions share.
@@ -96,6 +112,10 @@ class Sessions {
   std::map<std::string, std::shared_ptr<WebSession>> sessions_;
   std::mutex scenesM_;
   std::map<std::string, std::shared_ptr<const Scene>> sceneCache_;
+  mutable std::mutex recordingsM_;
+  std::vector<std::pair<std::string, std::shared_ptr<const OpenedRecording>>> recordingCache_;  // newest last
+  std::vector<KnownRecording> uploads_;
+  int nextUpload_ = 1;
   // One frame drawn at a time (llvmpipe uses both cores) and one JPEG encoded, whichever session.
   std::shared_ptr<render::FairGate> drawGate_ = std::make_shared<render::FairGate>(1),
                                     encodeGate_ = std::make_shared<render::FairGate>(1);
