@@ -116,8 +116,9 @@ async function start() {
   }
   if (!server.clips) for (const b of ['clip-last', 'clip-next']) $(b).disabled = true;
 
-  // A recording when the address asks for one (the atlas's "inspect" links: ?recording=NAME&time=T&body=B,
-  // or recordings=a,b side by side) or the server was given one (--open); else a scene (#scene=...&methods=...).
+  // A recording when the address asks for one (?recording=NAME&time=T&body=B, or recordings=a,b side
+  // by side; the atlas's "inspect" links add focus=k: the server opens panel k's first failure) or
+  // the server was given one (--open); else a scene (#scene=...&methods=...).
   const query = new URLSearchParams(location.search);
   const params = new URLSearchParams(location.hash.slice(1));
   const listed = (v) => (v || '').split(',').filter(Boolean);
@@ -126,6 +127,8 @@ async function start() {
   else if (listed(query.get('recordings')).length) recording = { recordings: listed(query.get('recordings')) };
   else if (server.open && server.open.length)
     recording = server.open.length === 1 ? { recording: server.open[0] } : { recordings: server.open };
+  const focus = query.get('focus');
+  if (recording && focus !== null && /^\d+$/.test(focus)) recording.focus = Number(focus);
   let state = null;
   if (recording) {
     try {
@@ -158,7 +161,7 @@ async function start() {
   if (recording && state.timeline && state.timeline.recorded) {
     const time = Number(query.get('time'));
     if (query.get('time') !== null && Number.isFinite(time)) await act('/scrub', { time });
-    else if (!query.has('time')) await act('/play', { speed: Number($('speed').value) });
+    else if (!query.has('time') && !('focus' in recording)) await act('/play', { speed: Number($('speed').value) });
     if (query.get('body')) await select({ body: query.get('body') });
   }
 }
@@ -270,6 +273,13 @@ function showState(state) {
   }
   const p = state.panels[sel.value && sel.value !== 'all' ? Number(sel.value) : 0] || state.panels[0];
   const set = p.settings;
+  // A recorded session is named after its recording, not a scene file: shown as such.
+  if (![...$('scene').options].some((o) => o.value === state.scene)) {
+    for (const o of [...$('scene').options]) if (o.dataset.recording) o.remove();
+    const o = new Option(`recording: ${state.scene}`, state.scene);
+    o.dataset.recording = '1';
+    $('scene').add(o);
+  }
   $('scene').value = state.scene;
   $('algo').value = set.algorithm;
   for (const label of document.querySelectorAll('#solver-controls label, #more-controls label')) {
@@ -708,7 +718,13 @@ async function listRecordings() {
     a.onclick = (e) => { e.preventDefault(); openRecording({ recording: rec.name }); };
     const info = document.createElement('span');
     info.className = 'info';
-    info.textContent = `${rec.scene}, ${rec.panels} panel${rec.panels === 1 ? '' : 's'}, ${rec.frames} frames, ${fmt6(+rec.seconds.toFixed(2))} s`;
+    const facts = [];
+    if (rec.scene) facts.push(rec.scene);
+    if (rec.panels) facts.push(`${rec.panels} panel${rec.panels === 1 ? '' : 's'}`);
+    if (rec.frames) facts.push(`${rec.frames} frames`);
+    if (rec.seconds) facts.push(`${fmt6(+rec.seconds.toFixed(2))} s`);
+    if (rec.bytes !== undefined) facts.push(`${(rec.bytes / 1e6).toFixed(2)} MB`);
+    info.textContent = facts.join(', ');
     label.append(tick, a, info);
     box.appendChild(label);
   }
@@ -718,7 +734,7 @@ async function uploadRecording(file) {
   if (!file) return;
   showMessage(`uploading ${file.name} (${(file.size / 1e6).toFixed(1)} MB)...`, true);
   try {
-    const r = await api('POST', '/api/recordings', file);
+    const r = await api('POST', `/api/recordings?name=${encodeURIComponent(file.name)}`, file);
     $('rec-file').value = '';
     await openRecording({ recording: r.name });
     listRecordings();
@@ -740,7 +756,18 @@ async function openRecording(body) {
     try { state = await api('POST', '/api/sessions', body); } catch (e2) { return showMessage(e2.message); }
   }
   attach(state);
-  if (old && old !== state.id) api('DELETE', `/api/sessions/${old}`).catch(() => {});
+  // The old session goes once the new stream shows a frame: the browser holds the old stream until
+  // then, and closing it sooner would cut it short (an error in the console).
+  if (old && old !== state.id) {
+    let closed = false;
+    const close = () => {
+      if (closed) return;
+      closed = true;
+      api('DELETE', `/api/sessions/${old}`).catch(() => {});
+    };
+    $('view').addEventListener('load', close, { once: true });
+    setTimeout(close, 3000);
+  }
   const q = body.recording ? `recording=${encodeURIComponent(body.recording)}` : `recordings=${body.recordings.map(encodeURIComponent).join(',')}`;
   history.replaceState(null, '', `?${q}`);
   clearMessage();

@@ -6,8 +6,9 @@
 // scrubs back by dragging the slider (the frame changes, the time shown is the API's), steps back,
 // selects a body by clicking it (the inspector's numbers are GET inspect's, and follow the shown
 // step), jumps to the worst penetration, clicks a marker, turns on force arrows (the frame's pixels
-// change) and saves screenshot_timeline.png; then a recording made by `substep run --record`,
-// uploaded through the page's file input and opened by an atlas-style link (?recording=&time=&body=).
+// change) and saves browser_timeline.png; then a recording made by `substep run --record`,
+// uploaded through the page's file input, opened by links (?recording=&time=&body=, the atlas's
+// ?recordings=&focus=) and by a second server's --open.
 //
 //   node browser_test.mjs --substep build/app/substep --out build/browser [--chromium /usr/bin/chromium]
 //       [--scenes assets/scenes]
@@ -83,7 +84,7 @@ try {
   const page = context.pages()[0] || await context.newPage();
   const errors = [];
   page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error' && !/favicon/.test(m.text())) errors.push(m.text()); });
+  page.on('console', (m) => { if (m.type() === 'error' && !/favicon/.test(m.text())) errors.push(`${m.text()} (${m.location().url} on ${page.url()})`); });
 
   // What the <img> shows now: a checksum of a region of the streamed frame, drawn into a canvas.
   const frameSum = (region) => page.evaluate((r) => {
@@ -343,102 +344,112 @@ try {
   check(jw.panels[0].contacts.length > 0, `the worst body has contacts there (${jw.panels[0].contacts.length})`);
 
   console.log('forces');
-  // Until the server draws forces (view.forces) and keeps recordings (/api/recordings), those
-  // parts say SKIPPED; they run as soon as the server has the calls.
-  const hasForces = 'forces' in (await api('')).view;
-  if (!hasForces) console.log('  SKIPPED: forces and joint errors (the server\'s view has no "forces")');
   const stillFrame = () => until('a still frame', async () => {
     const a = await frameSum();
     await sleep(600);
     return a !== null && a === (await frameSum()) && a;
   });
-  if (hasForces) {
-    // A step where the selected body's contacts carry an impulse, so that there is an arrow to draw.
-    const pushing = (j) => j.panels[0].contacts.some((c) => c.normal_impulse > 0);
-    for (let k = 0; k < 60 && !pushing(await api('/inspect')); ++k) {
-      const at = (await api('')).timeline.shown_step;
-      await page.click('#step');
-      await until('the next step', async () => (await api('')).timeline.shown_step === at + 1);
-    }
-    const jf = await api('/inspect');
-    check(pushing(jf), `at step ${jf.panels[0].step} ${jf.body} has contact impulses (λn up to ${Math.max(...jf.panels[0].contacts.map((c) => c.normal_impulse)).toPrecision(3)} N s)`);
-    const noForces = await stillFrame();
-    await page.check('#forces');
-    await until('forces on', async () => (await api('')).view.forces === true);
-    await until('the force arrows in the frame', async () => (await frameSum()) !== noForces);
-    check(true, 'turning on "forces" changes the frame (contact and friction impulses drawn)');
-    const withForces = await stillFrame();
-    await page.check('#joint_errors');
-    await until('joint errors on', async () => (await api('')).view.joint_errors === true);
-    check(true, 'the "joint errors" toggle reaches the view');
-    await page.uncheck('#forces');
-    await until('forces off', async () => (await api('')).view.forces === false);
-    await until('the frame without force arrows', async () => (await frameSum()) !== withForces);
-    await page.check('#forces');
-    await until('forces on again', async () => (await api('')).view.forces === true);
+  // A step where the selected body's contacts carry an impulse, so that there is an arrow to draw.
+  const pushing = (j) => j.panels[0].contacts.some((c) => c.normal_impulse > 0);
+  for (let k = 0; k < 60 && !pushing(await api('/inspect')); ++k) {
+    const at = (await api('')).timeline.shown_step;
+    await page.click('#step');
+    await until('the next step', async () => (await api('')).timeline.shown_step === at + 1);
   }
+  const jf = await api('/inspect');
+  check(pushing(jf), `at step ${jf.panels[0].step} ${jf.body} has contact impulses (λn up to ${Math.max(...jf.panels[0].contacts.map((c) => c.normal_impulse)).toPrecision(3)} N s)`);
+  const noForces = await stillFrame();
+  await page.check('#forces');
+  await until('forces on', async () => (await api('')).view.forces === true);
+  await until('the force arrows in the frame', async () => (await frameSum()) !== noForces);
+  check(true, 'turning on "forces" changes the frame (contact and friction impulses drawn)');
+  const withForces = await stillFrame();
+  await page.check('#joint_errors');
+  await until('joint errors on', async () => (await api('')).view.joint_errors === true);
+  check(true, 'the "joint errors" toggle reaches the view');
+  await page.uncheck('#forces');
+  await until('forces off', async () => (await api('')).view.forces === false);
+  await until('the frame without force arrows', async () => (await frameSum()) !== withForces);
+  check(true, 'turning "forces" off changes the frame back');
+  await page.check('#forces');
+  await until('forces on again', async () => (await api('')).view.forces === true);
   await sleep(1500);  // the frame and the plots' cursor settle for the screenshot
   const shotTimeline = path.join(out, 'browser_timeline.png');
   await page.screenshot({ path: shotTimeline, fullPage: true });
   check(fs.statSync(shotTimeline).size > 10000, `screenshot saved: ${shotTimeline}`);
 
   console.log('recordings');
-  const hasRecordings = (await fetch(`${base}/api/recordings`)).status !== 404;
-  if (!hasRecordings) console.log('  SKIPPED: recordings (no GET /api/recordings on this server)');
-  if (hasRecordings) {
-    const rec = path.join(out, 'browser_ragdoll.rec');
-    const made = spawnSync(substep, ['run', path.join(scenes, 'ragdoll.json'), '--seconds', '2', '--record', rec], { encoding: 'utf8' });
-    check(made.status === 0 && fs.existsSync(rec), `substep run --record wrote ${rec}${made.status ? ': ' + made.stderr : ''}`);
-    const oldSession = await sessionId();
-    await page.setInputFiles('#rec-file', rec);
-    const replay = await until('a session on the uploaded recording', async () => {
-      if ((await sessionId()) === oldSession) return false;
-      const s = await api('');
-      return s.timeline && s.timeline.recorded && s;
-    });
-    check(replay.scene === 'ragdoll' && Math.abs(replay.timeline.last - 2) < 1e-6, `the uploaded recording replays (ragdoll, ${replay.timeline.first}-${replay.timeline.last} s)`);
-    check((await fetch(`${base}/api/sessions/${oldSession}`)).status === 404, 'the page closed its previous session');
-    const recName = new URL(page.url()).searchParams.get('recording');
-    await until(`${recName} in the page's list of recordings`, async () => (await page.$$eval('#recordings a', (as) => as.map((a) => a.textContent))).includes(recName));
-    check(true, `the page lists ${recName} (GET /api/recordings)`);
+  const rec = path.join(out, 'browser_ragdoll.rec');
+  const made = spawnSync(substep, ['run', path.join(scenes, 'ragdoll.json'), '--seconds', '2', '--record', rec], { encoding: 'utf8' });
+  check(made.status === 0 && fs.existsSync(rec), `substep run --record wrote ${rec}${made.status ? ': ' + made.stderr : ''}`);
+  const oldSession = await sessionId();
+  await page.setInputFiles('#rec-file', rec);
+  const replay = await until('a session on the uploaded recording', async () => {
+    if ((await sessionId()) === oldSession) return false;
+    const s = await api('');
+    return s.timeline && s.timeline.recorded && s;
+  });
+  check(replay.bodies.length === 14 && replay.bodies.every((b) => b.startsWith('ragdoll_0_')) && Math.abs(replay.timeline.last - 2) < 1e-6,
+  `the uploaded recording replays (${replay.scene}: the ragdoll's 14 bodies, ${replay.timeline.first}-${replay.timeline.last} s)`);
+  await until('the previous session closed', async () => (await fetch(`${base}/api/sessions/${oldSession}`)).status === 404, 10);
+check(true, 'the page closed its previous session');
+  const recName = new URL(page.url()).searchParams.get('recording');
+  await until(`${recName} in the page's list of recordings`, async () => (await page.$$eval('#recordings a', (as) => as.map((a) => a.textContent))).includes(recName));
+  check(true, `the page lists ${recName} (GET /api/recordings)`);
 
-    console.log('an atlas-style link: ?recording=&time=&body=');
-    const linkBody = replay.bodies[Math.min(3, replay.bodies.length - 1)];
-    await page.goto(`${base}/?recording=${encodeURIComponent(recName)}&time=1&body=${encodeURIComponent(linkBody)}`);
-    const linked = await until('the linked step and body', async () => {
+  console.log('an atlas-style link: ?recording=&time=&body=');
+  const linkBody = replay.bodies[Math.min(3, replay.bodies.length - 1)];
+  await page.goto(`${base}/?recording=${encodeURIComponent(recName)}&time=1&body=${encodeURIComponent(linkBody)}`);
+  const linked = await until('the linked step and body', async () => {
+    const id = await sessionId();
+    if (!id) return false;
+    const s = await api('');
+    return s.timeline && s.timeline.recorded && !s.playing && s.selected === linkBody &&
+      s.timeline.shown <= 1 + 1e-9 && s.timeline.shown > 1 - s.timeline.dt - 1e-9 && s;
+  });
+  check(true, `the link opens ${recName} at t = ${linked.timeline.shown} s, paused, with ${linkBody} selected`);
+  await inspectorAgrees('the link');
+
+console.log("the atlas's inspect link: ?recordings=&focus=0");
+await page.goto(`${base}/?recordings=${encodeURIComponent(recName)}&focus=0`);
+const focused = await until('the recording at its focus', async () => {
+  const id = await sessionId();
+  if (!id) return false;
+  const s = await api('');
+  const body = (await page.textContent('#inspect-body')) || '';
+  return s.timeline && s.timeline.recorded && s.selected && body === s.selected &&
+    (await page.textContent('#shown-time')) === `t = ${s.timeline.shown.toFixed(3)} s` && s;
+});
+await sleep(1000);
+const still = await api('');
+check(!still.playing && still.timeline.shown === focused.timeline.shown,
+  `the page stays at the focus (t = ${focused.timeline.shown.toFixed(3)} s, ${focused.selected} selected), paused`);
+await inspectorAgrees('focus');
+
+  console.log('serve --open');
+  const server2 = spawn(substep, ['serve', '--port', '0', '--size', '320x180', '--open', rec], { stdio: ['ignore', 'pipe', 'pipe'] });
+  let server2Out = '';
+  server2.stdout.on('data', (d) => { server2Out += d; });
+  server2.stderr.on('data', (d) => { server2Out += d; });
+  const exited2 = new Promise((r) => server2.on('exit', (code) => r(code)));
+  try {
+    const port2 = await until('the second server', () => { const m = server2Out.match(/http:\/\/127\.0\.0\.1:(\d+)\//); return m && Number(m[1]); });
+    const open = (await (await fetch(`http://127.0.0.1:${port2}/api/server`)).json()).open;
+    check(Array.isArray(open) && open.length === 1, `GET /api/server lists the recording given by --open (${open})`);
+    await page.goto(`http://127.0.0.1:${port2}/`);
+    const opened = await until('the page on the --open recording', async () => {
       const id = await sessionId();
       if (!id) return false;
-      const s = await api('');
-      return s.timeline && s.timeline.recorded && !s.playing && s.selected === linkBody &&
-        s.timeline.shown <= 1 + 1e-9 && s.timeline.shown > 1 - s.timeline.dt - 1e-9 && s;
+      const s = await (await fetch(`http://127.0.0.1:${port2}/api/sessions/${id}`)).json();
+      return s.timeline && s.timeline.recorded && s;
     });
-    check(true, `the link opens ${recName} at t = ${linked.timeline.shown} s, paused, with ${linkBody} selected`);
-    await inspectorAgrees('the link');
-
-    console.log('serve --open');
-    const server2 = spawn(substep, ['serve', '--port', '0', '--size', '320x180', '--open', rec], { stdio: ['ignore', 'pipe', 'pipe'] });
-    let server2Out = '';
-    server2.stdout.on('data', (d) => { server2Out += d; });
-    server2.stderr.on('data', (d) => { server2Out += d; });
-    const exited2 = new Promise((r) => server2.on('exit', (code) => r(code)));
-    try {
-      const port2 = await until('the second server', () => { const m = server2Out.match(/http:\/\/127\.0\.0\.1:(\d+)\//); return m && Number(m[1]); });
-      const open = (await (await fetch(`http://127.0.0.1:${port2}/api/server`)).json()).open;
-      check(Array.isArray(open) && open.length === 1, `GET /api/server lists the recording given by --open (${open})`);
-      await page.goto(`http://127.0.0.1:${port2}/`);
-      const opened = await until('the page on the --open recording', async () => {
-        const id = await sessionId();
-        if (!id) return false;
-        const s = await (await fetch(`http://127.0.0.1:${port2}/api/sessions/${id}`)).json();
-        return s.timeline && s.timeline.recorded && s;
-      });
-      check(opened.scene === 'ragdoll', 'the page opens the --open recording instead of its default scene');
-      await page.goto('about:blank');
-    } finally {
-      server2.kill('SIGINT');
-      const code2 = await exited2;
-      check(code2 === 130, `the second server stops on SIGINT (${code2})`);
-    }
+    check(opened.bodies.length === 14 && opened.bodies.every((b) => b.startsWith('ragdoll_0_')),
+    `the page opens the --open recording (${opened.scene}) instead of its default scene`);
+    await page.goto('about:blank');
+  } finally {
+    server2.kill('SIGINT');
+    const code2 = await exited2;
+    check(code2 === 130, `the second server stops on SIGINT (${code2})`);
   }
 
   check(errors.length === 0, `no errors in the page${errors.length ? ': ' + errors.join('; ') : ''}`);
