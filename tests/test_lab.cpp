@@ -9,6 +9,7 @@
 #include "lab/reference.h"
 #include "lab/runner.h"
 #include "lab/sweep.h"
+#include "lab/timeline.h"
 #include "lab/verdict.h"
 
 #include <gtest/gtest.h>
@@ -532,4 +533,43 @@ TEST(BulletPeer, StateRoundTripAndPenetration) {
   EXPECT_GT(p.points, 0);  // it starts 1 cm into the ground
   EXPECT_GT(p.deepest, 0.001);
   EXPECT_LT(p.deepest, 0.02);
+}
+
+// The timeline's criterion markers (lab/timeline.h) are the verdict's own checks as the run goes:
+// the step a bound first fails at is the length of the shortest run the verdict fails on it.
+TEST(Timeline, ABoundFirstFailsWhereAShorterRunStillPasses) {
+  const Scene scene = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/atlas/mass_ratio_box_100.json");
+  const Method method = parseMethods("a5").front();
+  SolverOverrides o = method.overrides;
+  const SolverSettings settings = resolve(o);
+  World world(scene.model, settings, scene.initial);
+  TimelineWatch watch(scene, 3);
+  watch.add(takeSnapshot(world));
+  for (int k = 0; k < 60; ++k) {
+    world.step();
+    watch.add(takeSnapshot(world));
+  }
+  std::optional<TimelineMarker> pen;
+  for (const TimelineMarker& m : watch.markers())
+    if (m.kind == "criterion" && m.text.find("penetration") != std::string::npos) pen = m;
+  ASSERT_TRUE(pen) << "a5 fails this scene's penetration bound (tests/data/atlas_expected.json)";
+  ASSERT_GT(pen->step, 1);
+  EXPECT_EQ(scene.model.bodies[static_cast<size_t>(pen->body)].name, "light_box");
+  auto penetrationCheck = [&](long long steps) {
+    RunSetup setup;
+    setup.seconds = static_cast<double>(steps) * settings.dt;
+    const RunResult r = runMethod(scene, method, setup);
+    EXPECT_EQ(r.stepsDone, steps);
+    for (const Check& c : judge(scene, r).checks)
+      if (c.text.find("penetration") != std::string::npos) return c;
+    ADD_FAILURE() << "no penetration check";
+    return Check{};
+  };
+  EXPECT_FALSE(penetrationCheck(pen->step).ok);
+  EXPECT_EQ(penetrationCheck(pen->step).text, pen->text);
+  EXPECT_TRUE(penetrationCheck(pen->step - 1).ok);
+  // The worst penetration so far is the deepest contact of any kept step.
+  const auto worst = watch.worst("penetration");
+  ASSERT_TRUE(worst);
+  EXPECT_GT(worst->value, 0.01);
 }

@@ -879,3 +879,33 @@ TEST(Server, RecordingsReplayAsRecorded) {
   EXPECT_EQ(post(*c, "/api/sessions", {{"recording", "../../etc/passwd"}}).status, 400);
   EXPECT_EQ(post(*c, "/api/sessions", {{"recording", "ragdoll.rec"}, {"scene", "stack"}}).status, 400);
 }
+
+// From the atlas into the viewer: `atlas --record` inside the lab folder, `serve --lab`: each cell
+// links its scene's recordings, and the session they open shows the cell's panel at its first
+// failure with the deciding body selected.
+TEST(Server, AtlasCellsOpenAtTheirFirstFailure) {
+  const fs::path dir = emptyScratchFolder("server");
+  const std::string atlas = (dir / "lab" / "atlas").string();
+  const Outcome made = runSubstep("atlas --scenes mass_ratio_box_100 --methods a2,a5 --no-clips -q -o " + atlas +
+                                  " --record " + atlas + "/recordings");
+  ASSERT_EQ(made.status, 0) << made.output;
+  ServerProcess srv(small({"--lab", (dir / "lab").string()}));
+  auto c = srv.client();
+  const Answer page = call(*c, "GET", "/lab/atlas/index.html");
+  ASSERT_EQ(page.status, 200);
+  const std::string link = "data-recordings=\"recordings/mass_ratio_box_100-a2.rec,recordings/mass_ratio_box_100-a5.rec\" data-panel=\"1\"";
+  EXPECT_NE(page.text.find(link), std::string::npos) << page.text.substr(0, 2000);
+  const Answer opened = post(*c, "/api/sessions", {{"recordings", "atlas/recordings/mass_ratio_box_100-a2.rec,atlas/recordings/mass_ratio_box_100-a5.rec"},
+                                                   {"focus", 1}});
+  ASSERT_EQ(opened.status, 201) << opened.text;
+  const std::string s = "/api/sessions/" + opened.body["id"].get<std::string>();
+  json first;
+  const json markers = call(*c, "GET", s + "/timeline").body["markers"];
+  for (const json& m : markers)
+    if (m["panel"] == 1 && m["kind"] == "criterion" && first.is_null()) first = m;
+  ASSERT_FALSE(first.is_null()) << "a5 fails this scene (tests/data/atlas_expected.json): a criterion marker; " << markers;
+  EXPECT_DOUBLE_EQ(opened.body["timeline"]["shown"].get<double>(), first["time"].get<double>());
+  EXPECT_GT(first["time"].get<double>(), 0);
+  EXPECT_EQ(opened.body["selected"], first["body"]);
+  EXPECT_EQ(opened.body["panels"].size(), 2u);
+}
