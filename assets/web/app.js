@@ -1,18 +1,31 @@
 // The page of `substep serve`: one session per tab, driven through the JSON API of
 // docs/server.md; frames arrive as an MJPEG stream in the <img>, stats as server-sent events.
+// The timeline scrubs the session's kept steps, the inspector shows the selected body there.
 'use strict';
 
 const $ = (id) => document.getElementById(id);
 const S = {
   id: null, state: null, methods: null, settingByKey: {}, stats: null,
   events: null, cameraQueue: null, cameraBusy: false,
+  timeline: null,      // first, last, shown, shown_step, live, recorded, dt [s]
+  markers: [],         // GET timeline's markers
+  selected: null,      // the selected body's name
+  inspect: null,       // the inspector JSON shown
+  shownStep: null,     // the step the inspector was asked for
+  scrubWanted: null,   // the latest scrub body not yet sent
+  scrubDragging: false,
 };
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 // ---- requests ----
 
+// body: an object (sent as JSON) or a Blob (sent as its bytes).
 async function api(method, path, body) {
   const init = { method, headers: {} };
-  if (body !== undefined) {
+  if (body instanceof Blob) {
+    init.body = body;
+    init.headers['Content-Type'] = 'application/octet-stream';
+  } else if (body !== undefined) {
     init.body = JSON.stringify(body);
     init.headers['Content-Type'] = 'application/json';
   }
@@ -30,11 +43,28 @@ async function api(method, path, body) {
 
 function sessionPath(rest = '') { return `/api/sessions/${S.id}${rest}`; }
 
+// One request of a kind in flight: a call meanwhile runs it once more when it ends (so the latest
+// wins), and at most once every `ms`.
+function single(f, ms = 0) {
+  let busy = false, again = false, last = 0;
+  const run = async () => {
+    if (busy) { again = true; return; }
+    busy = true;
+    const wait = last + ms - Date.now();
+    if (wait > 0) await sleep(wait);
+    last = Date.now();
+    try { await f(); } finally { busy = false; }
+    if (again) { again = false; run(); }
+  };
+  return run;
+}
+
 async function act(path, body) {
   try {
     const state = await api('POST', sessionPath(path), body || {});
     if (state && state.id) showState(state);
     clearMessage();
+    refreshTimeline();  // markers: a reset, new panels, steps taken
     return state;
   } catch (e) {
     if (e.status === 404) return expired();
@@ -51,6 +81,11 @@ function showMessage(text, info = false) {
   m.classList.remove('hidden');
 }
 function clearMessage() { $('message').classList.add('hidden'); }
+function flash(text) {
+  showMessage(text, true);
+  clearTimeout(S.flashTimer);
+  S.flashTimer = setTimeout(clearMessage, 2000);
+}
 
 function expired() {
   showMessage('This session has closed (idle too long, or the server restarted). Reload the page for a new one.');
@@ -81,26 +116,71 @@ async function start() {
   }
   if (!server.clips) for (const b of ['clip-last', 'clip-next']) $(b).disabled = true;
 
+  // A recording when the address asks for one (?recording=NAME&time=T&body=B, or recordings=a,b side
+  // by side; the atlas's "inspect" links add focus=k: the server opens panel k's first failure) or
+  // the server was given one (--open); else a scene (#scene=...&methods=...).
+  const query = new URLSearchParams(location.search);
   const params = new URLSearchParams(location.hash.slice(1));
-  const wanted = params.get('scene');
-  const scene = scenes.scenes.some((s) => s.name === wanted) ? wanted
-    : scenes.scenes.some((s) => s.name === 'pyramid') ? 'pyramid' : scenes.scenes[0].name;
-  const body = { scene, play: params.get('play') !== '0' };
-  if (params.get('methods')) body.methods = params.get('methods');
-  try {
-    const state = await api('POST', '/api/sessions', body);
-    S.id = state.id;
-    showState(state);
-  } catch (e) {
-    showMessage(e.message);
-    return;
+  const listed = (v) => (v || '').split(',').filter(Boolean);
+  let recording = null;
+  if (query.get('recording')) recording = { recording: query.get('recording') };
+  else if (listed(query.get('recordings')).length) recording = { recordings: listed(query.get('recordings')) };
+  else if (server.open && server.open.length)
+    recording = server.open.length === 1 ? { recording: server.open[0] } : { recordings: server.open };
+  const focus = query.get('focus');
+  if (recording && focus !== null && /^\d+$/.test(focus)) recording.focus = Number(focus);
+  let state = null;
+  if (recording) {
+    try {
+      state = await api('POST', '/api/sessions', recording);
+    } catch (e) {
+      showMessage(`${recording.recording || recording.recordings.join(', ')}: ${e.message}`);
+    }
   }
+  if (!state) {
+    const wanted = params.get('scene');
+    const scene = scenes.scenes.some((s) => s.name === wanted) ? wanted
+      : scenes.scenes.some((s) => s.name === 'pyramid') ? 'pyramid' : scenes.scenes[0].name;
+    const body = { scene, play: params.get('play') !== '0' };
+    if (params.get('methods')) body.methods = params.get('methods');
+    try {
+      state = await api('POST', '/api/sessions', body);
+    } catch (e) {
+      showMessage(e.message);
+      return;
+    }
+  }
+  attach(state);
+  bindControls();
+  bindMouse();
+  setInterval(() => { if (S.stats && S.stats.playing) refreshTimeline(); }, 1000);
+  window.addEventListener('pagehide', () => navigator.sendBeacon(sessionPath('/close')));
+  // A server that keeps recordings says which it was given (`open`); one without has no Recordings box.
+  if ('open' in server) listRecordings();
+  else $('recordings-box').classList.add('hidden');
+  if (recording && state.timeline && state.timeline.recorded) {
+    const time = Number(query.get('time'));
+    if (query.get('time') !== null && Number.isFinite(time)) await act('/scrub', { time });
+    else if (!query.has('time') && !('focus' in recording)) await act('/play', { speed: Number($('speed').value) });
+    if (query.get('body')) await select({ body: query.get('body') });
+  }
+}
+
+// The page shows session `state` from now on: its stream, events, timeline and selection.
+function attach(state) {
+  if (S.events) S.events.close();
+  S.id = state.id;
+  S.timeline = null;
+  S.markers = [];
+  S.shownStep = null;
+  S.e0 = undefined;
+  for (const p of Object.values(plots)) p.clear();
+  showState(state);
   $('view').src = sessionPath('/stream.mjpeg');
   $('download-frame').href = sessionPath('/frame.png');
   openEvents();
-  bindControls();
-  bindMouse();
-  window.addEventListener('pagehide', () => navigator.sendBeacon(sessionPath('/close')));
+  refreshTimeline();
+  refreshInspect();
 }
 
 function fillSelect(sel, items) {
@@ -193,6 +273,13 @@ function showState(state) {
   }
   const p = state.panels[sel.value && sel.value !== 'all' ? Number(sel.value) : 0] || state.panels[0];
   const set = p.settings;
+  // A recorded session is named after its recording, not a scene file: shown as such.
+  if (![...$('scene').options].some((o) => o.value === state.scene)) {
+    for (const o of [...$('scene').options]) if (o.dataset.recording) o.remove();
+    const o = new Option(`recording: ${state.scene}`, state.scene);
+    o.dataset.recording = '1';
+    $('scene').add(o);
+  }
   $('scene').value = state.scene;
   $('algo').value = set.algorithm;
   for (const label of document.querySelectorAll('#solver-controls label, #more-controls label')) {
@@ -211,8 +298,7 @@ function showState(state) {
   }
   $('preset').disabled = !S.settingByKey.preset.takes.includes(set.algorithm);
   $('settings-line').textContent = state.panels.map((q) => q.line).join(' | ');
-  $('play').classList.toggle('on', state.playing);
-  $('pause').classList.toggle('on', !state.playing);
+  showPlaying(state.playing, state.speed);
   // Camera and view.
   const cams = state.cameras.map((c) => [c, c]);
   if ([...$('camera-preset').options].map((o) => o.value).join() !== state.cameras.join()) fillSelect($('camera-preset'), cams);
@@ -228,17 +314,34 @@ function showState(state) {
   $('contacts').checked = state.view.contacts;
   $('joints').checked = state.view.joints;
   $('hud').checked = state.view.hud;
+  $('forces').checked = !!state.view.forces;
+  $('joint_errors').checked = !!state.view.joint_errors;
   showClips(state.clips);
+  if (state.timeline) showTimeline(state.timeline);
+  if ('selected' in state && (state.selected || null) !== S.selected) {
+    S.selected = state.selected || null;
+    refreshInspect();
+  }
+}
+
+function showPlaying(playing, speed) {
+  $('play').classList.toggle('on', playing && speed > 0);
+  $('reverse').classList.toggle('on', playing && speed < 0);
+  $('pause').classList.toggle('on', !playing);
 }
 
 // ---- buttons and fields ----
 
 function bindControls() {
   $('play').onclick = () => act('/play', { speed: Number($('speed').value) });
+  $('reverse').onclick = () => act('/play', { speed: -Number($('speed').value) });
   $('pause').onclick = () => act('/pause');
   $('step').onclick = () => act('/step', { count: 1 });
+  $('step-back').onclick = () => act('/step', { count: -1 });
+  $('live').onclick = () => act('/scrub', { live: true });
   $('reset').onclick = () => act('/reset');
-  $('speed').onchange = () => act('/play', { speed: Number($('speed').value) });
+  // A new speed keeps the direction played.
+  $('speed').onchange = () => act('/play', { speed: (S.stats && S.stats.speed < 0 ? -1 : 1) * Number($('speed').value) });
   $('seek').onchange = () => act('/seek', { time: Number($('seek').value) });
   $('scene').onchange = () => act('/scene', { scene: $('scene').value });
   $('algo').onchange = () => changeSetting('algorithm', $('algo').value);
@@ -259,14 +362,25 @@ function bindControls() {
   $('follow').onchange = () => act('/camera', { follow: $('follow').value });
   $('orbit').onchange = () => act('/camera', { orbit: Number($('orbit').value) });
   $('colour').onchange = () => act('/view', { colour: $('colour').value });
-  for (const k of ['contacts', 'joints', 'hud']) $(k).onchange = () => act('/view', { [k]: $(k).checked });
+  for (const k of ['contacts', 'joints', 'forces', 'joint_errors', 'hud']) $(k).onchange = () => act('/view', { [k]: $(k).checked });
+  bindTimeline();
+  $('inspect-clear').onclick = () => select({ body: null });
+  $('worst').onclick = () => jumpToWorst($('worst-kind').value);
+  $('rec-file').onchange = () => uploadRecording($('rec-file').files[0]);
+  $('rec-refresh').onclick = () => listRecordings();
+  $('rec-open').onclick = () => {
+    const names = [...document.querySelectorAll('#recordings input:checked')].map((b) => b.value);
+    if (!names.length) return flash('tick one or more recordings first');
+    openRecording(names.length === 1 ? { recording: names[0] } : { recordings: names });
+  };
   $('push-speed').oninput = () => { $('push-speed-out').textContent = $('push-speed').value; };
   $('clip-last').onclick = () => makeClip('last');
   $('clip-next').onclick = () => makeClip('next');
   document.addEventListener('keydown', (e) => {
     if (e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT') return;
     if (e.key === ' ') { e.preventDefault(); act(S.state.playing ? '/pause' : '/play'); }
-    else if (e.key === 's') act('/step', { count: 1 });
+    else if (e.key === 's' || e.key === 'ArrowRight') act('/step', { count: 1 });
+    else if (e.key === 'ArrowLeft') act('/step', { count: -1 });
     else if (e.key === 'r') act('/reset');
   });
 }
@@ -296,7 +410,10 @@ function bindMouse() {
   });
   img.addEventListener('pointerup', (e) => {
     img.classList.remove('dragging');
-    if (down && !down.moved && e.button === 0) push(e);
+    if (down && !down.moved && e.button === 0) {
+      if (e.shiftKey) push(e);
+      else select(framePixel(e));
+    }
     down = null;
   });
   img.addEventListener('wheel', (e) => {
@@ -331,10 +448,17 @@ async function flushCamera() {
   flushCamera();
 }
 
-async function push(e) {
+// The pixel of the frame under the pointer: from the displayed size of the image to the frame's.
+function framePixel(e) {
   const img = $('view');
   const r = img.getBoundingClientRect();
-  const x = ((e.clientX - r.left) / r.width) * img.naturalWidth, y = ((e.clientY - r.top) / r.height) * img.naturalHeight;
+  const w = img.naturalWidth || S.state.width, h = img.naturalHeight || S.state.height;
+  const clamp = (v, n) => Math.max(0, Math.min(n - 1, v));
+  return { x: clamp(((e.clientX - r.left) / r.width) * w, w), y: clamp(((e.clientY - r.top) / r.height) * h, h) };
+}
+
+async function push(e) {
+  const { x, y } = framePixel(e);
   try {
     const hit = await api('POST', sessionPath('/push'), { x, y, speed: Number($('push-speed').value) });
     if (hit.hit) showMessage(`pushed ${hit.name}`, true);
@@ -343,6 +467,311 @@ async function push(e) {
   } catch (err) {
     showMessage(err.message);
   }
+}
+
+// ---- the timeline: the kept steps, scrubbed; markers above the slider ----
+
+function bindTimeline() {
+  const sl = $('scrub');
+  sl.addEventListener('pointerdown', () => { S.scrubDragging = true; });
+  const done = () => { S.scrubDragging = false; };
+  sl.addEventListener('pointerup', done);
+  sl.addEventListener('pointercancel', done);
+  sl.addEventListener('change', done);
+  sl.addEventListener('input', () => scrubTo({ time: Number(sl.value) }));
+}
+
+function scrubTo(body) {
+  S.scrubWanted = body;
+  sendScrub();
+}
+
+// While dragging, one scrub in flight; the position reached meanwhile goes next.
+const sendScrub = single(async () => {
+  const body = S.scrubWanted;
+  if (!body) return;
+  S.scrubWanted = null;
+  try {
+    showState(await api('POST', sessionPath('/scrub'), body));
+  } catch (e) {
+    if (e.status === 404) return expired();
+    showMessage(e.message);
+  }
+  if (!S.scrubWanted) refreshTimeline();
+});
+
+// The span, the shown step and whether it is live, from the state or a stats event (same fields).
+function showTimeline(t) {
+  const old = S.timeline;
+  S.timeline = { ...(old || {}), ...t };
+  const tl = S.timeline;
+  const sl = $('scrub');
+  sl.min = tl.first;
+  sl.max = tl.last;
+  if (!S.scrubDragging && !S.scrubWanted) sl.value = tl.shown;
+  $('shown-time').textContent = `t = ${tl.shown.toFixed(3)} s`;
+  $('shown-time').dataset.time = tl.shown;
+  $('shown-step').textContent = `step ${tl.shown_step}`;
+  $('shown-step').dataset.step = tl.shown_step;
+  const badge = $('shown-badge');
+  badge.textContent = tl.recorded ? (tl.live ? 'recording: its end' : 'recording') : tl.live ? 'live' : 'the past';
+  badge.className = tl.live && !tl.recorded ? 'badge ok' : 'badge past';
+  $('kept-span').textContent = `kept ${tl.first.toFixed(2)}-${tl.last.toFixed(2)} s`;
+  if (!old || old.first !== tl.first || old.last !== tl.last) layoutMarkers();
+  placeCursor();
+  if (tl.shown_step !== S.shownStep) {
+    S.shownStep = tl.shown_step;
+    refreshInspect();
+  }
+}
+
+const refreshTimeline = single(async () => {
+  if (!S.id) return;
+  let t;
+  try {
+    t = await api('GET', sessionPath('/timeline'));
+  } catch (e) {
+    return;  // the next call says it (an expired session shows on the next action)
+  }
+  S.markers = t.markers || [];
+  const { markers, ...span } = t;
+  showTimeline(span);
+  layoutMarkers();
+}, 250);
+
+const MARKER_ROW = 10;  // [px] a strip per panel
+
+function xOf(time) {
+  const tl = S.timeline, span = tl.last - tl.first;
+  return span > 0 ? (100 * (time - tl.first)) / span : 0;
+}
+
+function panelName(i) {
+  const p = S.state && S.state.panels[i];
+  return !p ? `panel ${i + 1}` : S.state.panels.length > 1 ? `panel ${i + 1} (${p.method})` : p.method;
+}
+
+function layoutMarkers() {
+  const box = $('markers'), tl = S.timeline;
+  const rows = Math.max(1, S.state ? S.state.panels.length : 1);
+  box.style.height = `${rows * MARKER_ROW + 2}px`;
+  box.innerHTML = '';
+  if (!tl) return;
+  for (const m of S.markers) {
+    if (m.time < tl.first || m.time > tl.last) continue;  // no longer kept
+    const d = document.createElement('div');
+    d.className = `marker k-${m.kind}`;
+    d.style.left = `${xOf(m.time)}%`;
+    d.style.top = `${1 + m.panel * MARKER_ROW}px`;
+    d.style.height = `${MARKER_ROW - 2}px`;
+    d.title = `${panelName(m.panel)}, t = ${m.time.toFixed(3)} s (step ${m.step}): ${m.text}`;
+    Object.assign(d.dataset, { kind: m.kind, panel: m.panel, step: m.step, time: m.time });
+    if (m.body) d.dataset.body = m.body;
+    d.onclick = () => jumpToMarker(m);
+    box.appendChild(d);
+  }
+  const c = document.createElement('div');
+  c.className = 'cursor';
+  c.id = 'markers-cursor';
+  box.appendChild(c);
+  placeCursor();
+}
+
+function placeCursor() {
+  const c = $('markers-cursor');
+  if (c && S.timeline) c.style.left = `${xOf(S.timeline.shown)}%`;
+}
+
+async function jumpToMarker(m) {
+  await act('/scrub', { time: m.time });
+  if (m.body) await select({ body: m.body });
+  flash(`${panelName(m.panel)}: ${m.text}`);
+}
+
+async function jumpToWorst(kind) {
+  try {
+    const r = await api('POST', sessionPath('/worst'), { kind });
+    showInspect(r.inspect);
+    showState(await api('GET', sessionPath()));
+    refreshTimeline();
+    flash(r.marker.text || `worst ${kind} at t = ${r.marker.time} s`);
+  } catch (e) {
+    if (e.status === 404) return expired();
+    showMessage(e.message);
+  }
+}
+
+// ---- the inspector: the selected body at the shown step, per panel ----
+
+// body: {x, y} (a pixel of the frame), {body: name} or {body: null}.
+async function select(body) {
+  try {
+    const j = await api('POST', sessionPath('/select'), body);
+    showInspect(j);
+    if (!j.body && 'x' in body) flash('no body there');
+  } catch (e) {
+    if (e.status === 404) return expired();
+    showMessage(e.message);
+  }
+}
+
+// Asked when the shown step or the selection changes; one request in flight, 5 a second at most.
+const refreshInspect = single(async () => {
+  if (!S.id) return;
+  if (!S.selected) return showInspect({ body: null, panels: [] });
+  try {
+    showInspect(await api('GET', sessionPath('/inspect')));
+  } catch (e) {
+    if (e.status === 404) expired();
+  }
+}, 200);
+
+// Enough digits to tell steps apart, without float noise: 6 significant.
+function fmt6(v) {
+  if (v === null || v === undefined) return '-';
+  if (Array.isArray(v)) return v.map(fmt6).join(', ');
+  if (typeof v === 'number') return Number.isFinite(v) ? String(Number(v.toPrecision(6))) : String(v);
+  if (typeof v === 'object') return shapeText(v);
+  return String(v);
+}
+
+// {"kind": "box", "half_extents": [...]} -> "box, half extents 0.5, 0.5, 0.5"
+function shapeText(shape) {
+  if (!shape || typeof shape !== 'object') return fmt6(shape);
+  const head = shape.kind || shape.type || '';
+  const rest = Object.entries(shape).filter(([k]) => k !== 'kind' && k !== 'type')
+    .map(([k, v]) => `${k.replace(/_/g, ' ')} ${fmt6(v)}`);
+  return [head, ...rest].filter(Boolean).join(', ');
+}
+
+const INSPECT_ROWS = [
+  ['name', 'body'], ['shape', 'shape'], ['mass', 'mass [kg]'], ['inertia', 'inertia [kg m\u00b2]'],
+  ['position', 'position [m]'], ['orientation', 'orientation (w, x, y, z)'], ['velocity', 'velocity [m/s]'],
+  ['angular_velocity', 'angular velocity [rad/s]'], ['kinetic', 'kinetic energy [J]'],
+];
+const CONTACT_COLUMNS = [
+  ['other', 'other'], ['point', 'point [m]'], ['normal', 'normal'], ['depth', 'depth [m]'],
+  ['normal_impulse', '\u03bbn [N s]'], ['friction', 'friction [N s]'], ['twist', 'twist [N m s]'],
+];
+const JOINT_COLUMNS = [
+  ['name', 'joint'], ['kind', 'kind'], ['other', 'other'], ['error', 'error [m]'],
+  ['linear_impulse', 'linear impulse [N s]'], ['angular_impulse', 'angular impulse [N m s]'],
+];
+const MAX_ROWS = 40;  // contacts or joints listed per panel
+
+function showInspect(j) {
+  S.inspect = j;
+  S.selected = j.body || null;
+  $('inspect-body').textContent = j.body || '(none)';
+  const box = $('inspect-panels');
+  if (!j.body) {
+    box.innerHTML = '<p class="line">Click a body in the stream to inspect it (shift-click pushes it).</p>';
+    return;
+  }
+  const cell = (tag, field, v) => `<${tag} data-field="${field}">${escapeHtml(fmt6(v))}</${tag}>`;
+  const list = (caption, attr, rows, columns) => {
+    if (!rows || !rows.length) return `<p class="line" data-${attr}s="0">no ${caption}</p>`;
+    const head = `<tr>${columns.map(([, label]) => `<th>${label}</th>`).join('')}</tr>`;
+    const body = rows.slice(0, MAX_ROWS).map((r, k) =>
+      `<tr data-${attr}="${k}">${columns.map(([key]) => cell('td', key, r[key])).join('')}</tr>`).join('');
+    const more = rows.length > MAX_ROWS ? `<tr><td colspan="${columns.length}">and ${rows.length - MAX_ROWS} more</td></tr>` : '';
+    const counted = `${rows.length} ${rows.length === 1 ? caption.slice(0, -1) : caption}`;
+    return `<table class="list" data-${attr}s="${rows.length}"><caption>${counted}</caption>${head}${body}${more}</table>`;
+  };
+  box.innerHTML = j.panels.map((p) => `
+    <div class="inspect-card" data-panel="${p.panel}">
+      <h4>${escapeHtml(inspectTitle(p))} &middot;
+        t = <span data-field="time">${fmt6(p.time)}</span> s &middot; step <span data-field="step">${p.step}</span></h4>
+      <table class="kv">${INSPECT_ROWS.map(([key, label]) => `<tr><th>${label}</th>${cell('td', key, p[key])}</tr>`).join('')}</table>
+      ${list('contacts', 'contact', p.contacts, CONTACT_COLUMNS)}
+      ${list('joints', 'joint', p.joints, JOINT_COLUMNS)}
+    </div>`).join('');
+}
+
+function inspectTitle(p) {
+  const method = !p.method || p.method === 'scene' ? "the scene's settings" : p.method;
+  return S.state && S.state.panels.length > 1 ? `panel ${p.panel + 1}: ${method}` : method;
+}
+
+// ---- recordings: the server's, or a .rec uploaded ----
+
+async function listRecordings() {
+  let r;
+  try {
+    r = await api('GET', '/api/recordings');
+  } catch (e) {
+    $('recordings').innerHTML = `<p class="line">${escapeHtml(e.message)}</p>`;
+    return;
+  }
+  const box = $('recordings');
+  box.innerHTML = '';
+  if (!r.recordings.length) box.innerHTML = '<p class="line">none yet: open a .rec file</p>';
+  for (const rec of r.recordings) {
+    const label = document.createElement('label');
+    const tick = document.createElement('input');
+    tick.type = 'checkbox';
+    tick.value = rec.name;
+    const a = document.createElement('a');
+    a.href = `?recording=${encodeURIComponent(rec.name)}`;
+    a.textContent = rec.name;
+    a.title = 'Open this recording';
+    a.onclick = (e) => { e.preventDefault(); openRecording({ recording: rec.name }); };
+    const info = document.createElement('span');
+    info.className = 'info';
+    const facts = [];
+    if (rec.scene) facts.push(rec.scene);
+    if (rec.panels) facts.push(`${rec.panels} panel${rec.panels === 1 ? '' : 's'}`);
+    if (rec.frames) facts.push(`${rec.frames} frames`);
+    if (rec.seconds) facts.push(`${fmt6(+rec.seconds.toFixed(2))} s`);
+    if (rec.bytes !== undefined) facts.push(`${(rec.bytes / 1e6).toFixed(2)} MB`);
+    info.textContent = facts.join(', ');
+    label.append(tick, a, info);
+    box.appendChild(label);
+  }
+}
+
+async function uploadRecording(file) {
+  if (!file) return;
+  showMessage(`uploading ${file.name} (${(file.size / 1e6).toFixed(1)} MB)...`, true);
+  try {
+    const r = await api('POST', `/api/recordings?name=${encodeURIComponent(file.name)}`, file);
+    $('rec-file').value = '';
+    await openRecording({ recording: r.name });
+    listRecordings();
+  } catch (e) {
+    showMessage(`${file.name}: ${e.message}`);
+  }
+}
+
+// A session on the recording(s) instead of this one; the address says which, for a reload.
+async function openRecording(body) {
+  const old = S.id;
+  let state;
+  try {
+    state = await api('POST', '/api/sessions', body);
+  } catch (e) {
+    if (e.status !== 503 || !old) return showMessage(e.message);
+    // At the server's cap: this tab's session makes room.
+    await api('DELETE', `/api/sessions/${old}`).catch(() => {});
+    try { state = await api('POST', '/api/sessions', body); } catch (e2) { return showMessage(e2.message); }
+  }
+  attach(state);
+  // The old session goes once the new stream shows a frame: the browser holds the old stream until
+  // then, and closing it sooner would cut it short (an error in the console).
+  if (old && old !== state.id) {
+    let closed = false;
+    const close = () => {
+      if (closed) return;
+      closed = true;
+      api('DELETE', `/api/sessions/${old}`).catch(() => {});
+    };
+    $('view').addEventListener('load', close, { once: true });
+    setTimeout(close, 3000);
+  }
+  const q = body.recording ? `recording=${encodeURIComponent(body.recording)}` : `recordings=${body.recordings.map(encodeURIComponent).join(',')}`;
+  history.replaceState(null, '', `?${q}`);
+  clearMessage();
+  act('/play', { speed: Number($('speed').value) });
 }
 
 // ---- clips ----
@@ -389,9 +818,11 @@ function showClips(clips) {
 const plots = {};
 
 function openEvents() {
-  plots.cost = new Plot($('plot-cost'), $('cost-legend'), { stacked: true });
-  plots.error = new Plot($('plot-error'), $('error-legend'));
-  plots.energy = new Plot($('plot-energy'), $('energy-legend'));
+  if (!plots.cost) {
+    plots.cost = new Plot($('plot-cost'), $('cost-legend'), { stacked: true });
+    plots.error = new Plot($('plot-error'), $('error-legend'));
+    plots.energy = new Plot($('plot-energy'), $('energy-legend'));
+  }
   S.events = new EventSource(sessionPath('/events'));
   S.events.addEventListener('stats', (e) => showStats(JSON.parse(e.data)));
   S.events.onerror = () => {
@@ -405,11 +836,17 @@ function showStats(st) {
   $('time').textContent = `t = ${p0.time.toFixed(2)} s`;
   const rt = $('realtime');
   const diverged = st.panels.some((p) => p.diverged);
-  if (diverged || st.status) {
+  // A status without a diverged panel is where playing stopped ("at the first kept step", "the end
+  // of the recording") or a drawing problem: said in the badge, not as a divergence.
+  if (diverged) {
     rt.className = 'badge bad';
     rt.textContent = 'paused: diverged';
     rt.title = st.status;
     if (st.status && !S.shownStatus) { showMessage(st.status); S.shownStatus = true; }
+  } else if (st.status && !st.playing) {
+    rt.className = /^cannot /.test(st.status) ? 'badge bad' : 'badge ok';
+    rt.textContent = `paused: ${st.status}`;
+    rt.title = st.status;
   } else if (st.seeking) {
     rt.className = 'badge slow';
     rt.textContent = 'seeking';
@@ -423,11 +860,15 @@ function showStats(st) {
     rt.title = '';
   }
   if (!diverged) S.shownStatus = false;
-  if (S.state && st.playing !== S.state.playing) {
+  if (S.state) {
     S.state.playing = st.playing;
-    $('play').classList.toggle('on', st.playing);
-    $('pause').classList.toggle('on', !st.playing);
+    showPlaying(st.playing, st.speed);
   }
+  if (st.shown !== undefined) showTimeline(st);
+  for (const p of Object.values(plots)) p.setCursor(st.shown !== undefined ? st.shown : p0.time);
+  // The plots are the run's history: they grow while the newest step is shown (a recording: while
+  // it plays forward), not while scrubbing.
+  if (st.live === false && !(st.recorded && st.playing && st.speed > 0)) return showStatsTable(st);
   // Plots: a lone panel shows its stages; a grid the total of each panel.
   const names = st.panels.map((p, i) => p.name || `panel ${i + 1}`);
   if (st.panels.length === 1) {
@@ -448,6 +889,11 @@ function showStats(st) {
   }
   if (st.panels.length === 1) plots.cost.stacked = true;
   if (p0.time === 0) S.e0 = undefined;
+  showStatsTable(st);
+}
+
+function showStatsTable(st) {
+  const names = st.panels.map((p, i) => p.name || `panel ${i + 1}`);
   const rows = [['', 'time [s]', 'step [ms]', 's1', 's2', 's3', 's4', 'contacts', 'penetration [mm]', 'joint error [mm]', 'kinetic [J]']];
   st.panels.forEach((p, i) => rows.push([
     names[i], p.time.toFixed(2), num(p.step_ms, 2), num(p.s1_ms, 2), num(p.s2_ms, 2), num(p.s3_ms, 2), num(p.s4_ms, 2),

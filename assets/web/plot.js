@@ -15,6 +15,13 @@ class Plot {
     this.xs = [];
     this.ys = [];  // ys[k][i]
     this.pending = false;
+    this.cursor = null;  // the timeline's shown time [s]: a vertical line, null for none
+  }
+
+  setCursor(x) {
+    if (x === this.cursor) return;
+    this.cursor = x;
+    this.request();
   }
 
   setSeries(names) {
@@ -60,6 +67,7 @@ class Plot {
     const c = this.canvas, g = c.getContext('2d');
     const w = c.width, h = c.height, left = 46, bottom = 18, top = 6, right = 6;
     g.clearRect(0, 0, w, h);
+    g.lineWidth = 1;
     g.font = '11px system-ui, sans-serif';
     g.fillStyle = '#8b95a1';
     g.strokeStyle = '#333a43';
@@ -114,6 +122,16 @@ class Plot {
         g.lineWidth = 1.5;
         g.stroke();
       }
+    }
+    if (this.cursor !== null && this.cursor >= x0 && this.cursor <= x1) {
+      g.strokeStyle = '#ffffff';
+      g.lineWidth = 1;
+      g.setLineDash([3, 3]);
+      g.beginPath();
+      g.moveTo(Math.round(px(this.cursor)) + 0.5, top);
+      g.lineTo(Math.round(px(this.cursor)) + 0.5, h - bottom);
+      g.stroke();
+      g.setLineDash([]);
     }
   }
 }
