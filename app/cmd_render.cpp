@@ -4,6 +4,9 @@
 #include "app/commands.h"
 #include "app/common.h"
 #include "app/render_options.h"
+#include "lab/record.h"
+#include "physics/recording.h"
+#include "physics/settings_json.h"
 #include "render/ahead.h"
 #include "render/frame_sink.h"
 
@@ -23,6 +26,8 @@ using namespace substep::render;
 struct RenderCmdOptions {
   RenderOptions draw;
   std::string output;
+  std::optional<std::string> record;  // a recording of the panels' steps as they are drawn
+  long long recordEvery = 1;
   std::optional<double> seconds, at;
   int fps = 60, crf = 18;
   std::string encoderPreset = "veryfast";
@@ -223,6 +228,48 @@ void printReport(const RenderSession& session, const RenderCmdOptions& o, const 
   std::cout << "wrote     " << o.output << "\n";
 }
 
+// The panels' steps into a recording as the session keeps them (on the stepping thread): every
+// `every`-th, the first and the last.
+class SessionRecorder {
+ public:
+  SessionRecorder(const std::string& path, RenderSession& session, long long every, long long plannedSteps)
+      : every_(every), last_(static_cast<size_t>(session.panelCount()), -1) {
+    std::vector<lab::RecordingPanel> panels;
+    for (int i = 0; i < session.panelCount(); ++i)
+      panels.push_back({session.panel(i).name(), settingsJson(session.panel(i).settings()), session.panel(i).name(), false});
+    try {
+      writer_ = std::make_unique<RecordingWriter>(path, lab::recordingMeta(session.scene(), panels, every, plannedSteps));
+    } catch (const RecordingError& e) {
+      throw UsageError(std::string("--record ") + e.what());
+    }
+    session.setSnapshotHook([this](int panel, const std::shared_ptr<const Scene>&, const Snapshot& s) {
+      if (s.state.step % every_ == 0) add(panel, s);
+    });
+  }
+  // The panels' last steps, then the file; the error of a write that failed on the way.
+  void commit(const RenderSession& session) {
+    for (int i = 0; i < session.panelCount(); ++i) add(i, session.panel(i).shown());
+    if (!error_.empty()) throw std::runtime_error("--record: " + error_);
+    writer_->commit();
+  }
+  const RecordingWriter& writer() const { return *writer_; }
+
+ private:
+  void add(int panel, const Snapshot& s) {
+    if (!error_.empty() || s.state.step <= last_[static_cast<size_t>(panel)]) return;
+    try {
+      writer_->add(panel, s);
+      last_[static_cast<size_t>(panel)] = s.state.step;
+    } catch (const std::exception& e) {  // a full disk: reported at the end, the frames go on
+      error_ = e.what();
+    }
+  }
+  long long every_;
+  std::vector<long long> last_;  // per panel: the step written last
+  std::unique_ptr<RecordingWriter> writer_;
+  std::string error_;
+};
+
 int runRender(const RenderCmdOptions& o) {
   RenderPlan p = planRender(o);
   std::optional<OpenedRecording> rec;
@@ -233,12 +280,28 @@ int runRender(const RenderCmdOptions& o) {
   }
   RenderSession session = rec ? o.draw.makeRecordedSession(*rec)
                               : o.draw.makeSession(std::make_shared<const Scene>(load(o.draw.scene)), true);
+  std::unique_ptr<SessionRecorder> recorder;
+  if (o.record) {
+    if (rec) throw UsageError("--record: " + o.draw.scene + " is a recording already");
+    if (o.record->empty()) throw UsageError("--record: expected a file name, got an empty one");
+    if (samePath(*o.record, o.output)) throw UsageError("--record and -o name the same file " + o.output + "; give each its own");
+    checkWritable(*o.record, "--record " + *o.record);
+    const double seconds = p.kind == OutputKind::Png ? o.at.value_or(0.0) : static_cast<double>(p.frames) / o.fps;
+    recorder = std::make_unique<SessionRecorder>(*o.record, session, o.recordEvery,
+                                                 std::llround(seconds / session.panel(0).settings().dt));
+  }
   o.draw.printHeader(session);
   FrameTimes t;
   const double wall0 = nowSeconds();
-  if (const int status = produceFrames(session, o, p, t)) return status;
+  const int status = produceFrames(session, o, p, t);
+  // A diverged run's recording holds the steps before it: what there is to inspect.
+  if (recorder) recorder->commit(session);
+  if (status) return status;
   t.wall = nowSeconds() - wall0;
   if (!o.draw.quiet) printReport(session, o, p, t);
+  if (recorder && !o.draw.quiet)
+    std::cout << "wrote     " << *o.record << " (" << recorder->writer().frames() << " frames, " << std::fixed
+              << std::setprecision(1) << static_cast<double>(recorder->writer().bytes()) / 1e6 << " MB)\n";
   return 0;
 }
 
@@ -265,6 +328,11 @@ void addRenderCommand(CLI::App& app, std::function<int()>& action) {
                  ->check(CLI::Range(0.0, 1e5));
   at->excludes(seconds);
   cmd->add_option("--fps", opt->fps, "Frames per simulated second (default 60)")->check(CLI::Range(1, 240));
+  cmd->add_option("--record", opt->record,
+                  "Also write a recording of every panel's steps to this file (substep serve --open replays it; "
+                  "docs/recordings.md)");
+  cmd->add_option("--record-every", opt->recordEvery, "Keep every K-th step in the recording (first and last always)")
+      ->check(CLI::Range(1LL, 1000000000LL));
   cmd->add_option("--crf", opt->crf, "Video quality, x264 CRF: 0 lossless .. 51 worst (default 18)")->check(CLI::Range(0, 51));
   cmd->add_option("--encoder-preset", opt->encoderPreset, "x264 preset (default veryfast)")
       ->check(CLI::IsMember({"ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower"}));
