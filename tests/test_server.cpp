@@ -776,6 +776,9 @@ TEST(Server, TimelineScrubSelectInspectAndWorst) {
   EXPECT_EQ(past.body["body"], "col_0_0_9");
   EXPECT_EQ(past.body["panels"][0]["step"], 30);
   EXPECT_NE(past.body["panels"][0]["position"], liveBox["position"]);  // it was falling then
+  EXPECT_EQ(post(*c, s + "/scrub", {{"step", 42}}).body["timeline"]["shown_step"], 42);
+  EXPECT_EQ(post(*c, s + "/scrub", {{"step", 500}}).status, 409);
+  ASSERT_EQ(post(*c, s + "/scrub", {{"step", 30}}).status, 200);
   EXPECT_EQ(post(*c, s + "/scrub", {{"by", -5}}).body["timeline"]["shown_step"], 25);
   EXPECT_EQ(post(*c, s + "/step", {{"count", -2}}).body["timeline"]["shown_step"], 23);
   EXPECT_EQ(post(*c, s + "/step", {{"count", 3}}).body["timeline"]["shown_step"], 26);  // forward through the kept steps

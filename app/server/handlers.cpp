@@ -8,6 +8,7 @@
 #include "app/server/streams.h"
 #include "render/image.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <sstream>
 
@@ -251,11 +252,27 @@ void Handlers::seek(WebSession& s, const Request& req) {
 }
 
 void Handlers::scrub(WebSession& s, const Request& req) {
-  const Fields f(req, {"time", "by", "live"});
-  const int given = f.has("time") + f.has("by") + f.has("live");
-  if (given != 1) throw HttpError(400, "time, by, live: give one (a time in s, a number of kept steps, or live: true)");
+  const Fields f(req, {"time", "step", "by", "live"});
+  const int given = f.has("time") + f.has("step") + f.has("by") + f.has("live");
+  if (given != 1)
+    throw HttpError(400, "time, step, by, live: give one (a time in s, a kept step of panel 0, a number of kept steps, or live: true)");
   if (f.has("time")) {
     s.live->seek(f.number("time", {0, kMaxSeek}));
+  } else if (f.has("step")) {
+    const long long k = f.integer("step", {0, 1000000000});
+    // Panel 0's kept step k, by its number (a recording thinned by --every keeps only some).
+    const std::optional<double> t = s.live->read([&](const RenderSession& r, const Look&) -> std::optional<double> {
+      const auto& h = r.panel(0).history();
+      const auto it = std::lower_bound(h.begin(), h.end(), k, [](const Snapshot& x, long long n) { return x.state.step < n; });
+      if (it == h.end() || it->state.step != k) return std::nullopt;
+      return it->state.time;
+    });
+    if (!t) {
+      const json tl = s.live->read([](const RenderSession& r, const Look&) { return timelineJson(r); });
+      throw HttpError(409, "step " + std::to_string(k) + " is not kept (the timeline keeps t = " + numberText(tl["first"].get<double>()) +
+                               " to " + numberText(tl["last"].get<double>()) + " s; a recording made with --every keeps every K-th step)");
+    }
+    s.live->seek(*t);
   } else if (f.has("by")) {
     s.live->step(f.integer("by", {-1000000000, 1000000000}));
   } else {
