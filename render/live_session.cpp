@@ -24,6 +24,9 @@ constexpr double kWindow = 1.0;  // [s] the rates of the stats are measured over
 constexpr int kMaxClips = 8;     // kept per session; the oldest finished one goes first
 constexpr int kMaxClipsAtOnce = 2;
 constexpr double kMaxOwed = 0.25;  // [s] of wall time a tick may make up for
+// Why play stopped at an end of the timeline (not a divergence): cleared when play starts again.
+constexpr const char* kAtFirstKept = "at the first kept step";
+constexpr const char* kEndOfRecording = "the end of the recording";
 
 }  // namespace
 
@@ -99,7 +102,7 @@ double LiveSession::idleSeconds() const { return viewers_ > 0 ? 0.0 : std::max(0
 void LiveSession::play(double speed) {
   std::lock_guard<std::mutex> lk(m_);
   if (!playing_ || (speed < 0) != (speed_ < 0)) goal_ = session_.time();
-  if (status_ == "at the first kept step" || status_ == "the end of the recording") status_.clear();
+  if (status_ == kAtFirstKept || status_ == kEndOfRecording) status_.clear();
   if (session_.recorded() && speed > 0 && session_.ended()) session_.view(session_.firstKept());  // again from its start
   playing_ = true;
   speed_ = speed;
@@ -249,7 +252,7 @@ void LiveSession::advance(double now, double wallDt) {
     dirty_ = true;
     if (goal_ <= first) {
       playing_ = false;
-      status_ = "at the first kept step";
+      status_ = kAtFirstKept;
     }
     return;
   }
@@ -269,7 +272,7 @@ void LiveSession::advance(double now, double wallDt) {
       }
       if (!std::isfinite(t) && session_.recorded() && playing_) {
         playing_ = false;
-        status_ = "the end of the recording";
+        status_ = kEndOfRecording;
       }
       break;
     }
