@@ -392,7 +392,7 @@ void Handlers::createRecorded(const Fields& f, Response& res) {
   sessions_.open(s, setups, look, c, std::nullopt,
                  [&](RenderSession& r, Look&) { r.setRecorded(scene, setups, std::move(frames)); });
   if (f.has("focus")) {
-    const int panel = f.integer("focus", {0, static_cast<int>(setups.size()) - 1});
+    const int panel = f.integer("focus", {0, static_cast<double>(setups.size()) - 1});
     std::lock_guard<std::mutex> lk(s->m);
     if (const auto at = focusOf(*s, panel)) {
       s->live->seek(at->first);
@@ -445,7 +445,7 @@ void Handlers::worst(const Request& req, Response& res) {
   if (kind != "penetration" && kind != "joint_error" && kind != "speed")
     throw HttpError(400, "kind: expected penetration, joint_error or speed, got " + quote(json(kind)));
   std::lock_guard<std::mutex> lk(s->m);
-  const int panel = f.has("panel") ? f.integer("panel", {0, static_cast<int>(s->panels.size()) - 1}) : -1;
+  const int panel = f.has("panel") ? f.integer("panel", {0, static_cast<double>(s->panels.size()) - 1}) : -1;
   const auto w = s->timeline->worst(kind, panel);
   if (!w) throw HttpError(409, "no " + kind + " so far" + (panel >= 0 ? " in panel " + std::to_string(panel) : "") +
                                    ": play the scene first");
