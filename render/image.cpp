@@ -3,6 +3,7 @@
 // Declarations only: libstb-dev compiles the implementations into libstb.
 #include <stb_image.h>
 #include <stb_image_write.h>
+#include <turbojpeg.h>
 
 #include <unistd.h>
 
@@ -41,12 +42,33 @@ std::vector<uint8_t> encodePng(const Image& img) {
   return out;
 }
 
+namespace {
+
+// One compressor a thread (the session encoders and clip threads each have theirs): a handle holds
+// its buffers between frames, and is not to be shared between threads at once.
+struct TurboCompressor {
+  tjhandle h = tjInitCompress();
+  ~TurboCompressor() {
+    if (h) tjDestroy(h);
+  }
+};
+
+}  // namespace
+
 std::string encodeJpeg(const Image& img, int quality) {
-  std::string out;
-  out.reserve(static_cast<size_t>(img.width) * img.height / 8);
-  auto sink = [](void* ctx, void* data, int size) { static_cast<std::string*>(ctx)->append(static_cast<char*>(data), size); };
-  if (!stbi_write_jpg_to_func(sink, &out, img.width, img.height, 4, img.rgba.data(), std::clamp(quality, 1, 100)))
-    throw std::runtime_error("JPEG encoding failed (" + std::to_string(img.width) + "x" + std::to_string(img.height) + ")");
+  thread_local TurboCompressor c;
+  const std::string size = std::to_string(img.width) + "x" + std::to_string(img.height);
+  if (!c.h) throw std::runtime_error("JPEG encoding failed (" + size + "): libjpeg-turbo: " + tjGetErrorStr2(nullptr));
+  unsigned char* buf = nullptr;
+  unsigned long bytes = 0;
+  if (tjCompress2(c.h, img.rgba.data(), img.width, img.width * 4, img.height, TJPF_RGBA, &buf, &bytes, TJSAMP_420,
+                  std::clamp(quality, 1, 100), 0) != 0) {
+    const std::string why = tjGetErrorStr2(c.h);
+    tjFree(buf);
+    throw std::runtime_error("JPEG encoding failed (" + size + "): " + why);
+  }
+  std::string out(reinterpret_cast<const char*>(buf), bytes);
+  tjFree(buf);
   return out;
 }
 

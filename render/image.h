@@ -23,8 +23,8 @@ struct Image {
 
 std::vector<uint8_t> encodePng(const Image& img);
 Image decodePng(const std::vector<uint8_t>& bytes);   // throws std::runtime_error
-// Baseline JPEG (stb_image_write; 4:2:0 chroma at quality <= 90), alpha dropped: the server's
-// streamed frames. Quality 1-100.
+// Baseline JPEG (libjpeg-turbo, 4:2:0 chroma), alpha dropped: the server's streamed frames.
+// Quality 1-100. Thread-safe (a compressor per thread).
 std::string encodeJpeg(const Image& img, int quality);
 // Any format stb_image reads (PNG, JPEG); throws std::runtime_error.
 Image decodeImage(const void* data, size_t size);

@@ -7,7 +7,7 @@ SUBSTEP_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SUBSTEP_PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libfcl-dev libccd-dev libassimp-dev
-  libosmesa6-dev libstb-dev fonts-dejavu-core
+  libosmesa6-dev libstb-dev libturbojpeg0-dev fonts-dejavu-core
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libcpp-httplib-dev
   libdart-external-odelcpsolver-dev libbullet-dev libxxhash-dev
   ffmpeg gnuplot-nox parallel
