@@ -28,6 +28,7 @@
 #include <functional>
 #include <limits>
 #include <set>
+#include <thread>
 
 namespace fs = std::filesystem;
 using namespace substep;
@@ -552,6 +553,41 @@ TEST(Images, PngRoundTripAndAtomicWrite) {
   EXPECT_THROW(writePng("/proc/no/such/dir/x.png", img), std::runtime_error);
   EXPECT_THROW(readPng(scratch("missing.png").string()), std::runtime_error);
   EXPECT_THROW(decodePng({1, 2, 3}), std::runtime_error);
+}
+
+// The stream's JPEG (libjpeg-turbo): decodes to the frame within its quality, more quality costs
+// more bytes, threads encoding at once get the same bytes, and an empty frame is an error.
+TEST(Images, JpegKeepsTheFrameAndIsThreadSafe) {
+  Image img(320, 180);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      uint8_t* p = img.pixel(x, y);
+      p[0] = static_cast<uint8_t>(x * 255 / img.width);
+      p[1] = static_cast<uint8_t>(y * 255 / img.height);
+      p[2] = (x / 40 + y / 30) % 2 ? 220 : 40;  // hard edges, as a frame's bodies have
+      p[3] = 255;
+    }
+  auto psnr = [&](const std::string& jpeg) {
+    const Image d = decodeImage(jpeg.data(), jpeg.size());
+    EXPECT_EQ(d.width, img.width);
+    EXPECT_EQ(d.height, img.height);
+    double se = 0;
+    for (size_t i = 0; i < img.rgba.size(); i += 4)
+      for (int c = 0; c < 3; ++c) se += std::pow(double(img.rgba[i + c]) - d.rgba[i + c], 2);
+    return 10 * std::log10(255.0 * 255 / (se / (3.0 * img.width * img.height)));
+  };
+  const std::string q80 = encodeJpeg(img, 80), q30 = encodeJpeg(img, 30), q95 = encodeJpeg(img, 95);
+  EXPECT_GT(psnr(q80), 30);
+  EXPECT_GT(psnr(q95), psnr(q80));
+  EXPECT_GT(psnr(q80), psnr(q30));
+  EXPECT_GT(q95.size(), q80.size());
+  EXPECT_GT(q80.size(), q30.size());
+  std::vector<std::string> out(4);
+  std::vector<std::thread> threads;
+  for (auto& o : out) threads.emplace_back([&o, &img] { for (int k = 0; k < 20; ++k) o = encodeJpeg(img, 80); });
+  for (auto& t : threads) t.join();
+  for (const auto& o : out) EXPECT_EQ(o, q80);
+  EXPECT_THROW(encodeJpeg(Image(), 80), std::runtime_error);
 }
 
 TEST(Images, ComparisonToleratesRoundingButNotChange) {
