@@ -27,7 +27,6 @@ OpenedRecording openRecording(Recording r) {
     if (p.value("engine", "substep") == "bullet") s.name = "bullet" + (s.name.empty() ? "" : " " + s.name);
     o.panels.push_back(std::move(s));
   }
-  if (o.panels.size() == 1 && o.panels[0].name.empty()) o.panels[0].name.clear();
   for (const auto& f : r.panels)
     if (!f.empty()) o.seconds = std::max(o.seconds, f.back().state.time);
   o.every = r.meta.value("every", 1LL);

@@ -42,10 +42,13 @@ double kineticEnergy(const Model& model, const State& s) {
   for (size_t i = 0; i < model.bodies.size(); ++i) {
     const Body& b = model.bodies[i];
     if (b.isStatic) continue;
-    const BodyState& x = s.bodies[i];
-    e += 0.5 * b.mass * x.v.squaredNorm() + 0.5 * x.w.dot(b.inertia.cwiseProduct(x.w));
+    e += kineticEnergy(b, s.bodies[i]);
   }
   return e;
+}
+
+double kineticEnergy(const Body& b, const BodyState& x) {
+  return 0.5 * b.mass * x.v.squaredNorm() + 0.5 * x.w.dot(b.inertia.cwiseProduct(x.w));
 }
 
 double potentialEnergy(const Model& model, const State& s) {

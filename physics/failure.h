@@ -65,6 +65,8 @@ Displacement largestDisplacement(const Model& model, const State& from, const St
 // Energies of a state's dynamic bodies [J]: kinetic Σ ½ m |v|² + ½ v̌ᵀ I v̌, potential Σ -m g·x,
 // mechanical their sum.
 double kineticEnergy(const Model& model, const State& s);
+// One body's: ½ m |v|² + ½ v̌ᵀ I v̌ (angular velocity in the body frame) [J].
+double kineticEnergy(const Body& b, const BodyState& x);
 double potentialEnergy(const Model& model, const State& s);
 double mechanicalEnergy(const Model& model, const State& s);
 

@@ -45,6 +45,15 @@ void Panel::keep(Snapshot s) {
   historyBytes_ += snapshotBytes(s);
   history_.push_back(std::move(s));
   if (onKeep_) onKeep_(history_.back());
+  trim();
+}
+
+void Panel::setLimits(const HistoryLimits& limits) {
+  limits_ = limits;
+  trim();
+}
+
+void Panel::trim() {
   const double newest = history_.back().state.time;
   // The oldest go while the past exceeds the limits (the newest stays whatever it costs).
   while (history_.size() > 1 && (history_.front().state.time < newest - limits_.seconds - 1e-9 || historyBytes_ > limits_.bytes)) {
@@ -123,7 +132,7 @@ RenderSession::RenderSession(std::shared_ptr<const Scene> scene, const std::vect
 
 void RenderSession::hookPanel(int i) {
   Panel& p = *panels_[static_cast<size_t>(i)];
-  if (!p.recorded_) p.limits_ = {limits_.seconds, limits_.bytes / panels_.size()};
+  if (!p.recorded_) p.setLimits(panelLimits());
   if (!hook_) {
     p.onKeep_ = nullptr;
     return;
@@ -140,18 +149,7 @@ void RenderSession::setSnapshotHook(SnapshotHook hook) {
 void RenderSession::setHistoryLimits(const HistoryLimits& limits) {
   limits_ = limits;
   for (auto& p : panels_)
-    if (!p->recorded_) {
-      p->limits_ = {limits.seconds, limits.bytes / panels_.size()};
-      if (!p->history_.empty()) {  // the kept past trimmed now: keep() of the newest again
-        Snapshot s = std::move(p->history_.back());
-        p->historyBytes_ -= snapshotBytes(s);
-        p->history_.pop_back();
-        const auto hook = std::move(p->onKeep_);
-        p->onKeep_ = nullptr;
-        p->keep(std::move(s));
-        p->onKeep_ = hook;
-      }
-    }
+    if (!p->recorded_) p->setLimits(panelLimits());
 }
 
 void RenderSession::view(double t) {

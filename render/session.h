@@ -107,6 +107,8 @@ class Panel {
   void stepOnce();
   bool takeStep();  // false when it diverged
   void keep(Snapshot s);
+  void setLimits(const HistoryLimits& limits);  // and drops what they no longer keep
+  void trim();                                  // the oldest, while the history exceeds the limits
   // The cursor to the newest kept snapshot at or before t (the first when t is earlier); live
   // when that is the newest.
   void view(double t);
@@ -215,7 +217,9 @@ class RenderSession {
   Image frame(GlRenderer& renderer) const;
 
  private:
-  void hookPanel(int i);  // the snapshot hook into panel i, called for what it has kept
+  void hookPanel(int i);  // the snapshot hook and the history limits into panel i
+  // A panel's share of the limits: the bytes split equally.
+  HistoryLimits panelLimits() const { return {limits_.seconds, limits_.bytes / panels_.size()}; }
   std::shared_ptr<const Scene> scene_;
   std::vector<std::unique_ptr<Panel>> panels_;
   Look look_;

@@ -451,13 +451,7 @@ void Handlers::worst(const Request& req, Response& res) {
                                    ": play the scene first");
   s->live->seek(w->second.time);
   json j;
-  j["marker"] = {{"panel", w->first},
-                 {"kind", w->second.kind},
-                 {"step", w->second.step},
-                 {"time", w->second.time},
-                 {"body", w->second.body >= 0 ? json(s->scene->model.bodies[static_cast<size_t>(w->second.body)].name) : json(nullptr)},
-                 {"value", w->second.value},
-                 {"text", w->second.text}};
+  j["marker"] = markerJson(w->first, w->second, s->scene->model);
   j["inspect"] = selectBody(*s, w->second.body);
   sendJson(res, j);
 }

@@ -18,6 +18,8 @@ json vecf(const Eigen::Vector3f& v) { return json::array({v.x(), v.y(), v.z()});
 // A live run has no planned end: its metrics of "the second half" wait for one that never comes.
 constexpr double kLiveSeconds = 1e9;
 
+}  // namespace
+
 json markerJson(int panel, const lab::TimelineMarker& m, const Model& model) {
   return {{"panel", panel},
           {"kind", m.kind},
@@ -27,6 +29,8 @@ json markerJson(int panel, const lab::TimelineMarker& m, const Model& model) {
           {"value", m.value},
           {"text", m.text}};
 }
+
+namespace {
 
 json shapeJson(const Shape& s) {
   json j = {{"type", shapeTypeName(s.type)}};
@@ -110,7 +114,7 @@ json inspectJson(const RenderSession& r, const std::vector<std::string>& methods
     const Snapshot& s = r.panel(i).shown();
     const BodyState& b = s.state.bodies[static_cast<size_t>(body)];
     const Vec3 w = b.worldAngularVelocity();
-    const double kinetic = 0.5 * B.mass * b.v.squaredNorm() + 0.5 * b.w.dot(B.inertia.cwiseProduct(b.w));
+    const double kinetic = B.isStatic ? 0.0 : kineticEnergy(B, b);
     json contacts = json::array();
     for (const ManifoldSnap& m : s.manifolds) {
       if (m.a != body && m.b != body) continue;

@@ -40,6 +40,8 @@ class SessionTimeline {
   std::vector<Watch> panels_;
 };
 
+// A marker of panel `panel` as the API gives it (the body by name).
+json markerJson(int panel, const lab::TimelineMarker& m, const Model& model);
 // The timeline's span and cursor: first, last, shown, shown_step, live, recorded, dt.
 json timelineJson(const render::RenderSession& r);
 // Body `body` of every panel at its shown step (docs/server.md, the inspector); body < 0: none.

@@ -51,13 +51,13 @@ std::vector<WebSession::PanelState> panelsOf(const json& v, const std::string& f
     throw HttpError(400, field + ": expected 1 to " + std::to_string(kMaxPanels) + " methods, got " +
                              std::to_string(specs.size()));
   std::vector<WebSession::PanelState> r;
-  for (const MethodSpec& s : specs) r.push_back({s.overrides});
+  for (const MethodSpec& s : specs) r.push_back({s.overrides, {}});
   return r;
 }
 
 std::vector<WebSession::PanelState> newPanels(const Fields& f) {
   if (f.has("method") && f.has("methods")) throw HttpError(400, "method, methods: give one of them");
-  if (f.has("method")) return {WebSession::PanelState{methodOverrides(f.text("method"), "method")}};
+  if (f.has("method")) return {WebSession::PanelState{methodOverrides(f.text("method"), "method"), {}}};
   if (f.has("methods")) return panelsOf(f.at("methods"), "methods");
   return {WebSession::PanelState{}};
 }
