@@ -40,6 +40,9 @@ void addServeCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--timeline-mb", o->timelineMb,
                   "At most this many MB of kept steps per session, shared by its panels; the oldest go first (default 512)")
       ->check(CLI::Range(1, 65536));
+  cmd->add_flag("!--fixed-size", o->adaptSize,
+                "Draw every frame at --size (default: a session whose drawing cannot keep --fps draws at 3/4, then 1/2 of it, "
+                "and says so in its stats, so the page stays interactive)");
   cmd->add_option("--quality", o->jpegQuality, "JPEG quality of the stream, 1-100 (default 80)")->check(CLI::Range(1, 100));
   cmd->add_option("--web", o->webRoot, "Folder of the page's files (default: the assets' web/)");
   cmd->add_option("--scenes", o->scenesDir, "Folder of the scene files it offers (default: the assets' scenes/)");

@@ -23,6 +23,7 @@ struct ServerOptions {
   double history = 10;           // [s] of frames kept per session for clips of the last seconds
   double timelineSeconds = 60;   // [s] of steps kept per panel to scrub back to
   int timelineMb = 512;          // at most, per session (its panels share it)
+  bool adaptSize = true;         // frames drawn smaller while the drawing cannot keep the fps (LiveConfig)
   int jpegQuality = 80;
   std::string webRoot;           // the page's files (default: the assets' web/)
   std::string scenesDir;         // scene files listed and loaded by name (default: the assets' scenes/)

@@ -84,6 +84,11 @@ VideoSink::~VideoSink() {
   fs::remove(temp_, ec);  // finished, but not renamed
 }
 
+void VideoSink::writeRaw(const RawFrame& frame) {
+  const long stride = 4L * frame.width;
+  encoder_->write(frame.rgba.data() + stride * (frame.height - 1), -stride, frame.width, frame.height);
+}
+
 void VideoSink::commit() {
   encoder_->finish();
   std::error_code ec;
@@ -123,12 +128,19 @@ void ThreadedSink::run() {
     double finishing = 0, writing = 0;
     try {
       auto t0 = std::chrono::steady_clock::now();
+      const bool raw = job.isRaw && inner_->takesRaw();
       if (job.isRaw) {
-        finishFrame(job.raw, finished_);
+        if (raw)
+          finishInPlace(job.raw);
+        else
+          finishFrame(job.raw, finished_);
         finishing = secondsSince(t0);
         t0 = std::chrono::steady_clock::now();
       }
-      inner_->write(job.isRaw ? finished_ : job.image);
+      if (raw)
+        inner_->writeRaw(job.raw);
+      else
+        inner_->write(job.isRaw ? finished_ : job.image);
       writing = secondsSince(t0);
     } catch (...) {
       error = std::current_exception();

@@ -34,6 +34,9 @@ class FrameSink {
   virtual ~FrameSink() = default;
   virtual void write(const Image& frame) = 0;
   virtual void commit() = 0;
+  // A sink that reads a raw frame as it is (after finishInPlace), with no image made of it.
+  virtual bool takesRaw() const { return false; }
+  virtual void writeRaw(const RawFrame&) { throw std::logic_error("this sink takes images, not raw frames"); }
 };
 
 // One PNG: the last frame written, encoded at commit().
@@ -77,6 +80,9 @@ class VideoSink final : public FrameSink {
   ~VideoSink() override;
   void write(const Image& frame) override { encoder_->write(frame); }
   void commit() override;
+  // Converted from GL's bottom-up rows to the video's, with no flipped copy made.
+  bool takesRaw() const override { return true; }
+  void writeRaw(const RawFrame& frame) override;
 
  private:
   std::string path_, temp_;
@@ -85,8 +91,9 @@ class VideoSink final : public FrameSink {
 
 // Another sink's writes on a thread of their own, so the next frame is drawn while this one is
 // piped to ffmpeg or encoded as PNG. At most `depth` frames wait; pass() hands a frame over
-// without copying it, finished or raw (then the anti-aliasing filter and the row flip run on the
-// sink's thread too, beside the drawing of the next frame). An error of the inner sink comes out
+// without copying it, finished or raw (then the anti-aliasing filter, and the row flip for a
+// sink that does not take raw frames, run on the sink's thread too, beside the drawing of the
+// next frame). An error of the inner sink comes out
 // of the next pass(), write() or commit(). Destroyed without commit(), it drops the frames still
 // waiting and destroys the inner sink, which leaves nothing behind.
 class ThreadedSink final : public FrameSink {

@@ -61,10 +61,14 @@ void copyOpaque(const uint8_t* src, long srcStride, int width, int height, Image
     opaqueRow(src + static_cast<long>(y) * srcStride, &dst.rgba[static_cast<size_t>(y) * width * 4], width);
 }
 
-FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image& dst,
-               const std::vector<PixelRect>& keep, const FxaaOptions& options) {
+namespace {
+
+// The filter, reading `src` only: onRow(y, row) for each row before its pixels, onBlend(y, x, rgb)
+// for each pixel blended (the pixel of row y counted from the top, its three new channels).
+template <class OnRow, class OnBlend>
+FxaaStats filter(const uint8_t* src, long srcStride, int width, int height, const std::vector<PixelRect>& keep,
+                 const FxaaOptions& options, OnRow onRow, OnBlend onBlend) {
   FxaaStats stats;
-  if (dst.width != width || dst.height != height) dst = Image(width, height);
   if (width <= 0 || height <= 0) return stats;
   const int W = width, H = height;
   auto row = [&](int y) { return src + static_cast<long>(y) * srcStride; };
@@ -91,8 +95,7 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
   for (int y = 0; y < H; ++y) {
     fillTo(y + kSearchReach + 2);
     const uint8_t* in = row(y);
-    uint8_t* out = &dst.rgba[static_cast<size_t>(y) * W * 4];
-    opaqueRow(in, out, W);
+    onRow(y, in);
     if (!edgeRow(alphas(std::max(y - 1, 0)), alphas(y), alphas(std::min(y + 1, H - 1)), edge, W, minRange, share256))
       continue;
     for (const PixelRect& r : keep)
@@ -168,12 +171,43 @@ FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image&
 
       const uint8_t* m = in + 4 * x;
       const uint8_t* a = row(ya) + 4 * xa;
-      uint8_t* o = out + 4 * x;
+      uint8_t rgb[3];
       for (int ch = 0; ch < 3; ++ch)
-        o[ch] = static_cast<uint8_t>(static_cast<float>(m[ch]) + (static_cast<float>(a[ch]) - m[ch]) * offset + 0.5f);
+        rgb[ch] = static_cast<uint8_t>(static_cast<float>(m[ch]) + (static_cast<float>(a[ch]) - m[ch]) * offset + 0.5f);
+      onBlend(y, x, rgb);
       ++stats.edgePixels;
     }
   }
+  return stats;
+}
+
+}  // namespace
+
+FxaaStats fxaa(const uint8_t* src, long srcStride, int width, int height, Image& dst,
+               const std::vector<PixelRect>& keep, const FxaaOptions& options) {
+  if (dst.width != width || dst.height != height) dst = Image(width, height);
+  const size_t W = static_cast<size_t>(width);
+  return filter(
+      src, srcStride, width, height, keep, options,
+      [&](int y, const uint8_t* in) { opaqueRow(in, &dst.rgba[static_cast<size_t>(y) * W * 4], width); },
+      [&](int y, int x, const uint8_t* rgb) { std::memcpy(&dst.rgba[(static_cast<size_t>(y) * W + x) * 4], rgb, 3); });
+}
+
+FxaaStats finishInPlace(RawFrame& frame) {
+  if (!frame.fxaa || frame.width <= 0 || frame.height <= 0) return {};
+  const long stride = 4L * frame.width;
+  uint8_t* top = frame.rgba.data() + stride * (frame.height - 1);
+  // Every blend reads the frame as drawn, so the blended pixels wait until the filter is done.
+  struct Pending {
+    long offset;
+    uint8_t rgb[3];
+  };
+  thread_local std::vector<Pending> pending;
+  pending.clear();
+  const FxaaStats stats = filter(
+      top, -stride, frame.width, frame.height, frame.keep, FxaaOptions{}, [](int, const uint8_t*) {},
+      [&](int y, int x, const uint8_t* rgb) { pending.push_back({-stride * y + 4L * x, {rgb[0], rgb[1], rgb[2]}}); });
+  for (const Pending& p : pending) std::memcpy(top + p.offset, p.rgb, 3);
   return stats;
 }
 

@@ -58,5 +58,9 @@ struct RawFrame {
 };
 // Filtered (or copied), flipped, opaque: the frame as GlRenderer::render returns it.
 FxaaStats finishFrame(const RawFrame& frame, Image& out);
+// The same filter on the frame itself, for what reads its colours through a stride (the video's
+// conversion): the pixels blended as finishFrame blends them, the rows left bottom-up and the
+// alpha the luma. A frame without the filter is left as it is.
+FxaaStats finishInPlace(RawFrame& frame);
 
 }  // namespace substep::render

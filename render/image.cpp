@@ -72,6 +72,36 @@ std::string encodeJpeg(const Image& img, int quality) {
   return out;
 }
 
+Image resized(const Image& img, int width, int height) {
+  Image out(width, height);
+  if (img.width <= 0 || img.height <= 0) return out;
+  // The source coordinate of a destination pixel's centre, clamped to the edge pixels' centres.
+  auto axis = [](int n, int from, int i, int& i0, int& i1, float& f) {
+    const float x = std::clamp((static_cast<float>(i) + 0.5f) * static_cast<float>(from) / static_cast<float>(n) - 0.5f,
+                               0.0f, static_cast<float>(from - 1));
+    i0 = static_cast<int>(x);
+    i1 = std::min(i0 + 1, from - 1);
+    f = x - static_cast<float>(i0);
+  };
+  for (int y = 0; y < height; ++y) {
+    int y0, y1;
+    float fy;
+    axis(height, img.height, y, y0, y1, fy);
+    for (int x = 0; x < width; ++x) {
+      int x0, x1;
+      float fx;
+      axis(width, img.width, x, x0, x1, fx);
+      auto at = [&](int px, int py, int c) { return static_cast<float>(img.rgba[(static_cast<size_t>(py) * img.width + px) * 4 + c]); };
+      for (int c = 0; c < 4; ++c) {
+        const float top = at(x0, y0, c) + (at(x1, y0, c) - at(x0, y0, c)) * fx;
+        const float bottom = at(x0, y1, c) + (at(x1, y1, c) - at(x0, y1, c)) * fx;
+        out.rgba[(static_cast<size_t>(y) * width + x) * 4 + c] = static_cast<uint8_t>(top + (bottom - top) * fy + 0.5f);
+      }
+    }
+  }
+  return out;
+}
+
 Image decodePng(const std::vector<uint8_t>& bytes) {
   try {
     return decodeImage(bytes.data(), bytes.size());

@@ -28,6 +28,8 @@ Image decodePng(const std::vector<uint8_t>& bytes);   // throws std::runtime_err
 std::string encodeJpeg(const Image& img, int quality);
 // Any format stb_image reads (PNG, JPEG); throws std::runtime_error.
 Image decodeImage(const void* data, size_t size);
+// Bilinear, pixel centres aligned: a frame drawn smaller shown at a clip's size.
+Image resized(const Image& img, int width, int height);
 Image readPng(const std::string& path);               // throws std::runtime_error naming the file
 // Writes under a temporary name in the same folder and renames it into place; throws
 // std::runtime_error naming the file when it cannot.

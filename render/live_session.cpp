@@ -27,6 +27,22 @@ constexpr double kMaxOwed = 0.25;  // [s] of wall time a tick may make up for
 // Why play stopped at an end of the timeline (not a divergence): cleared when play starts again.
 constexpr const char* kAtFirstKept = "at the first kept step";
 constexpr const char* kEndOfRecording = "the end of the recording";
+// The sizes a session draws at, as shares of its own (adaptSize): each about half the pixels of
+// the one before. Smaller than half, the HUD's text would crowd the frame.
+constexpr double kSizeSteps[] = {1.0, 0.75, 0.5};
+constexpr int kSizeStepCount = sizeof kSizeSteps / sizeof kSizeSteps[0];
+constexpr int kMinFramesToAdapt = 5;  // drawn in a window for its draw time to decide a size
+
+struct Size {
+  int width, height;
+  std::string text() const { return std::to_string(width) + "x" + std::to_string(height); }
+};
+
+// The frames' size at a step of kSizeSteps: each side its share, even (the clips' yuv420p).
+Size sizeAtStep(const LiveConfig& c, int step) {
+  auto even = [](int n, double share) { return std::max(2, 2 * static_cast<int>(std::lround(0.5 * n * share))); };
+  return {even(c.width, kSizeSteps[step]), even(c.height, kSizeSteps[step])};
+}
 
 }  // namespace
 
@@ -62,6 +78,8 @@ LiveSession::LiveSession(std::shared_ptr<const Scene> scene, const std::vector<P
   session_.setHistoryLimits(config_.timeline);
   lastTouch_ = wallNow();
   collectStats(stats_);  // stats from the start, before the first tick
+  stats_.width = config_.width;
+  stats_.height = config_.height;
   thread_ = std::thread([this] { run(); });
   encoder_ = std::thread([this] { encodeLoop(); });
 }
@@ -206,6 +224,9 @@ void LiveSession::republish() {
     s.drawMs = stats_.drawMs;
     s.encodeMs = stats_.encodeMs;
     s.jpegBytes = stats_.jpegBytes;
+    s.width = stats_.width;
+    s.height = stats_.height;
+    s.sizeNote = stats_.sizeNote;
     stats_ = std::move(s);
   }
   frameCv_.notify_all();
@@ -226,6 +247,16 @@ void LiveSession::run() {
   lastTick_ = windowStart_ = next;
   while (!stop_) {
     tick(renderer.get(), wallNow());
+    const Size size = sizeAtStep(config_, sizeStep_);
+    if (renderer && (renderer->width() != size.width || renderer->height() != size.height)) {
+      try {
+        renderer.reset();  // one context at a time on this thread
+        renderer = std::make_unique<GlRenderer>(size.width, size.height, config_.renderer);
+      } catch (const std::exception& e) {
+        std::lock_guard<std::mutex> lk(m_);
+        status_ = std::string("cannot draw at ") + size.text() + ": " + e.what();
+      }
+    }
     next += period;
     const double now = wallNow();
     if (next < now) next = now;  // late: the next tick now, no catching up on missed ones
@@ -412,6 +443,7 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
     ratePhysics_ = 1e3 * windowPhysics_ / windowTicks_;
     rateDraw_ = windowFrames_ ? 1e3 * windowDraw_ / windowFrames_ : 0;
     rateBehind_ = windowBehind_;
+    if (config_.adaptSize && renderer) adaptSize(windowFrames_, rateDraw_);
     windowStart_ = now;
     windowSim_ = windowPhysics_ = windowDraw_ = 0;
     windowFrames_ = windowTicks_ = 0;
@@ -425,6 +457,9 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
   s.physicsMs = ratePhysics_;
   s.drawMs = rateDraw_;
   s.encodeMs = encodeMs_;
+  s.width = renderer ? renderer->width() : config_.width;
+  s.height = renderer ? renderer->height() : config_.height;
+  s.sizeNote = sizeNote_;
   if (!image) {
     publish(nullptr, nullptr, s, simTime, now);
     return;
@@ -437,6 +472,36 @@ void LiveSession::tick(GlRenderer* renderer, double now) {
     drawn_ = Drawn{std::move(image), s, simTime, now};
   }
   encCv_.notify_all();
+}
+
+void LiveSession::adaptSize(int framesDrawn, double drawMs) {
+  if (framesDrawn < kMinFramesToAdapt) return;  // paused, nobody watching: no measure
+  const double period = 1e3 / config_.fps;       // [ms]
+  const double shareNow = kSizeSteps[sizeStep_];
+  // Slow: the drawing alone takes the whole tick. Fast: the size above, its pixels costing as
+  // these do (an overestimate: the geometry's cost does not grow with them), would leave a
+  // quarter of the tick, so that the session does not go up only to come down again.
+  const bool slow = drawMs > 0.95 * period && sizeStep_ + 1 < kSizeStepCount;
+  const double shareUp = sizeStep_ > 0 ? kSizeSteps[sizeStep_ - 1] : shareNow;
+  const bool fast = sizeStep_ > 0 && drawMs * (shareUp * shareUp) / (shareNow * shareNow) < 0.75 * period;
+  slowWindows_ = slow ? slowWindows_ + 1 : 0;
+  fastWindows_ = fast ? fastWindows_ + 1 : 0;
+  const bool down = slowWindows_ >= 2;  // two seconds in a row: not a passing stall
+  if (!down && fastWindows_ < 3) return;
+  const Size before = sizeAtStep(config_, sizeStep_);
+  sizeStep_ += down ? 1 : -1;
+  slowWindows_ = fastWindows_ = 0;
+  if (sizeStep_ == 0) {
+    sizeNote_.clear();
+    return;
+  }
+  char why[120];
+  if (down)
+    std::snprintf(why, sizeof why, "at %s a frame took %.0f ms, %.0f fps", before.text().c_str(), drawMs, 1e3 / drawMs);
+  else
+    std::snprintf(why, sizeof why, "the full size would take about %.0f ms a frame", drawMs / (shareNow * shareNow));
+  sizeNote_ = "drawn at " + sizeAtStep(config_, sizeStep_).text() + " of " + sizeAtStep(config_, 0).text() + ": " + why +
+              ", below the " + std::to_string(config_.fps) + " fps asked";
 }
 
 std::shared_ptr<Image> LiveSession::spareImage() {
@@ -614,7 +679,14 @@ void LiveSession::startEncoding(Clip& c) {
       vo.fps = config_.fps;
       vo.crf = 23;
       VideoSink sink(config_.ffmpeg, path, config_.width, config_.height, vo);
-      for (const auto& j : c.jpegs) sink.write(decodeImage(j->data(), j->size()));
+      for (const auto& j : c.jpegs) {
+        const Image frame = decodeImage(j->data(), j->size());
+        // Frames drawn smaller while the drawing could not keep up (adaptSize) at the clip's size.
+        if (frame.width == config_.width && frame.height == config_.height)
+          sink.write(frame);
+        else
+          sink.write(resized(frame, config_.width, config_.height));
+      }
       sink.commit();
       std::error_code ec;
       bytes = static_cast<long long>(std::filesystem::file_size(path, ec));

@@ -71,6 +71,9 @@ struct LiveConfig {
   RendererOptions renderer;
   std::string ffmpeg;           // for clips; "" refuses them
   std::string clipFolder;       // where finished clips are written
+  // Frames drawn smaller (3/4, then 1/2 of each side) while even the drawing alone cannot keep
+  // the asked rate, larger again when the size above would; the stats say so (sizeNote).
+  bool adaptSize = true;
   std::shared_ptr<FairGate> drawGate, encodeGate;  // shared by the sessions of a server; null: none
 };
 
@@ -103,6 +106,8 @@ struct LiveStats {
   double fps = 0;               // frames drawn per wall second, over the last second
   double physicsMs = 0, drawMs = 0, encodeMs = 0;  // per tick, over the last second
   int jpegBytes = 0;
+  int width = 0, height = 0;    // the frames' size as drawn: the config's, or less (adaptSize)
+  std::string sizeNote;         // why they are drawn smaller; "" at the config's size
   std::vector<LivePanelStats> panels;
   std::string status;           // why it paused (a divergence), or a renderer failure
 };
@@ -243,6 +248,8 @@ class LiveSession {
   void republish();
   void run();
   void tick(GlRenderer* renderer, double now);
+  // At the end of a rate window: the size to draw at from the window's draw time (adaptSize).
+  void adaptSize(int framesDrawn, double drawMs);
   void advance(double now, double wallDt);
   void collectStats(LiveStats& s);  // under m_
   void publish(std::shared_ptr<const std::string> jpeg, std::shared_ptr<Image> image, const LiveStats& s,
@@ -271,7 +278,9 @@ class LiveSession {
   bool behindTick_ = false, windowBehind_ = false, rateBehind_ = false;
   std::vector<long long> prevSteps_;   // per panel, at the last stats: steps and their cost
   std::vector<double> prevPhysics_, lastStepMs_;
-  double lastDrawWall_ = -1;
+  int sizeStep_ = 0;                  // index into the sizes drawn at (0: the config's)
+  int slowWindows_ = 0, fastWindows_ = 0;
+  std::string sizeNote_;
 
   // Between the session thread and the encoder.
   struct Drawn {

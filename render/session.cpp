@@ -54,6 +54,7 @@ void Panel::setLimits(const HistoryLimits& limits) {
 }
 
 void Panel::trim() {
+  if (history_.empty()) return;  // nothing kept yet (limits set before the first step)
   const double newest = history_.back().state.time;
   // The oldest go while the past exceeds the limits (the newest stays whatever it costs).
   while (history_.size() > 1 && (history_.front().state.time < newest - limits_.seconds - 1e-9 || historyBytes_ > limits_.bytes)) {

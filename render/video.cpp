@@ -40,27 +40,31 @@ std::string findFfmpeg() {
   return findProgram("ffmpeg");
 }
 
-void rgbaToYuv420(const Image& frame, std::vector<uint8_t>& out) {
-  const size_t W = static_cast<size_t>(frame.width), H = static_cast<size_t>(frame.height);
+void rgbaToYuv420(const uint8_t* top, long stride, int width, int height, std::vector<uint8_t>& out) {
+  const size_t W = static_cast<size_t>(width), H = static_cast<size_t>(height);
   out.resize(W * H * 3 / 2);
-  const uint8_t* px = frame.rgba.data();
   // swscale's coefficients (BT.601 scaled to 219 and 224 levels, in 1/32768) and its rounding:
   // Y is exactly ffmpeg's. U and V: each row's pair of pixels as swscale takes them (in 1/64
   // level), then the mean of the two rows, where swscale's vertical filter is a little longer.
   constexpr int32_t RY = 8414, GY = 16519, BY = 3208;
   constexpr int32_t RU = -4857, GU = -9535, BU = 14392, RV = 14392, GV = -12052, BV = -2340;
   uint8_t* Y = out.data();
-  for (size_t i = 0; i < W * H; ++i) {
-    const int32_t r = px[4 * i], g = px[4 * i + 1], b = px[4 * i + 2];
-    Y[i] = static_cast<uint8_t>((RY * r + GY * g + BY * b + (32 << 14) + (1 << 8) + (32 << 9)) >> 15);
-  }
   uint8_t* U = Y + W * H;
   uint8_t* V = U + W * H / 4;
+  auto luma = [](const uint8_t* __restrict px, uint8_t* __restrict y, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+      const int32_t r = px[4 * i], g = px[4 * i + 1], b = px[4 * i + 2];
+      y[i] = static_cast<uint8_t>((RY * r + GY * g + BY * b + (32 << 14) + (1 << 8) + (32 << 9)) >> 15);
+    }
+  };
   auto pairU = [](int32_t r, int32_t g, int32_t b) { return (RU * r + GU * g + BU * b + (256 << 15) + (1 << 9)) >> 10; };
   auto pairV = [](int32_t r, int32_t g, int32_t b) { return (RV * r + GV * g + BV * b + (256 << 15) + (1 << 9)) >> 10; };
+  // A pair of rows at a time, Y and then U and V of it, while its pixels are in the cache.
   for (size_t y = 0; y < H / 2; ++y) {
-    const uint8_t* a = px + 4 * W * (2 * y);
-    const uint8_t* b = a + 4 * W;
+    const uint8_t* a = top + stride * static_cast<long>(2 * y);
+    const uint8_t* b = a + stride;
+    luma(a, Y + W * (2 * y), W);
+    luma(b, Y + W * (2 * y + 1), W);
     for (size_t x = 0; x < W / 2; ++x) {
       const uint8_t* p = a + 8 * x;
       const uint8_t* q = b + 8 * x;
@@ -70,6 +74,10 @@ void rgbaToYuv420(const Image& frame, std::vector<uint8_t>& out) {
       V[y * W / 2 + x] = static_cast<uint8_t>((pairV(r0, g0, b0) + pairV(r1, g1, b1) + 64) >> 7);
     }
   }
+}
+
+void rgbaToYuv420(const Image& frame, std::vector<uint8_t>& out) {
+  rgbaToYuv420(frame.rgba.data(), 4L * frame.width, frame.width, frame.height, out);
 }
 
 VideoEncoder::VideoEncoder(const std::string& ffmpeg, const std::string& path, int width, int height,
@@ -113,6 +121,9 @@ VideoEncoder::VideoEncoder(const std::string& ffmpeg, const std::string& path, i
     throw VideoError("cannot start " + ffmpeg + ": " + std::strerror(rc));
   }
   fd_ = fds[1];
+  // A frame in a few writes, not the ~20 that a pipe of 64 KiB takes, each waking ffmpeg (best
+  // effort: the size is capped by /proc/sys/fs/pipe-max-size, 1 MiB by default).
+  fcntl(fd_, F_SETPIPE_SZ, 1 << 20);
   // A dead ffmpeg must give us EPIPE, not kill us with SIGPIPE.
   struct sigaction ign {};
   ign.sa_handler = SIG_IGN;
@@ -168,12 +179,14 @@ void VideoEncoder::fail(const std::string& what) {
   throw VideoError(what + status + logTail());
 }
 
-void VideoEncoder::write(const Image& frame) {
-  if (frame.width != width_ || frame.height != height_)
-    throw VideoError("frame of " + std::to_string(frame.width) + "x" + std::to_string(frame.height) + " sent to a " +
+void VideoEncoder::write(const Image& frame) { write(frame.rgba.data(), 4L * frame.width, frame.width, frame.height); }
+
+void VideoEncoder::write(const uint8_t* top, long stride, int width, int height) {
+  if (width != width_ || height != height_)
+    throw VideoError("frame of " + std::to_string(width) + "x" + std::to_string(height) + " sent to a " +
                      std::to_string(width_) + "x" + std::to_string(height_) + " video");
   if (fd_ < 0) throw VideoError("the video is already closed");
-  rgbaToYuv420(frame, yuv_);
+  rgbaToYuv420(top, stride, width, height, yuv_);
   const uint8_t* p = yuv_.data();
   size_t left = yuv_.size();
   while (left > 0) {

@@ -30,6 +30,9 @@ std::string findProgram(const std::string& name);
 // level of ffmpeg's but for about 1 % of them at sharp colour edges, where its vertical chroma
 // filter reaches further. Width and height even.
 void rgbaToYuv420(const Image& frame, std::vector<uint8_t>& out);
+// The same from RGBA rows (alpha ignored) whose row y, counted from the top, starts at
+// top + y * stride bytes: a negative stride reads GL's bottom-up rows.
+void rgbaToYuv420(const uint8_t* top, long stride, int width, int height, std::vector<uint8_t>& out);
 
 struct VideoOptions {
   int fps = 60;
@@ -50,6 +53,8 @@ class VideoEncoder {
   // Sends one frame (the encoder's size). Throws VideoError, with ffmpeg's message, when ffmpeg
   // has stopped.
   void write(const Image& frame);
+  // A frame's RGBA rows through a stride (rgbaToYuv420); alpha ignored.
+  void write(const uint8_t* top, long stride, int width, int height);
   // Waits for ffmpeg to finish the file. Throws VideoError when it fails.
   void finish();
 

@@ -17,14 +17,19 @@ using namespace substep::render;
 
 namespace {
 
-std::unique_ptr<LiveSession> live(const std::string& scene, std::shared_ptr<FairGate> drawGate = nullptr) {
-  auto s = std::make_shared<const Scene>(loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + scene));
-  Look look;
-  look.camera = chooseCamera(*s, {});
+LiveConfig smallConfig() {
   LiveConfig c;
   c.width = 160;
   c.height = 96;
   c.fps = 20;
+  return c;
+}
+
+std::unique_ptr<LiveSession> live(const std::string& scene, std::shared_ptr<FairGate> drawGate = nullptr,
+                                  LiveConfig c = smallConfig()) {
+  auto s = std::make_shared<const Scene>(loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/" + scene));
+  Look look;
+  look.camera = chooseCamera(*s, {});
   c.drawGate = std::move(drawGate);
   return std::make_unique<LiveSession>(s, std::vector<PanelSetup>{{resolve(s->solver), ""}}, look, c);
 }
@@ -110,6 +115,47 @@ TEST(LiveSession, ALateTickFallsBehindAndSaysSo) {
   const LiveStats st = waitFor(*s, [](const LiveStats& x) { return x.behind; });
   EXPECT_TRUE(st.behind);
   EXPECT_LT(st.achieved, 0.95);
+}
+
+// Asked for more frames than its drawing allows (720p at 200 fps: 5 ms a frame, where this
+// machine draws the pyramid in 12 ms or more), a session draws smaller and says why; told to keep
+// its size, it does, and is slow.
+TEST(LiveSession, DrawsSmallerWhenTheDrawingCannotKeepTheRate) {
+  LiveConfig c;
+  c.fps = 200;
+  auto s = live("pyramid.json", nullptr, c);
+  s->play(1.0);
+  LiveSession::Viewer v(*s);
+  const LiveStats st = waitFor(*s, [](const LiveStats& x) { return x.width < 1280; });
+  ASSERT_LT(st.width, 1280) << "draw " << st.drawMs << " ms";
+  EXPECT_EQ(st.width * 720, st.height * 1280);  // the same shape
+  EXPECT_NE(st.sizeNote.find("drawn at " + std::to_string(st.width) + "x" + std::to_string(st.height) + " of 1280x720"),
+            std::string::npos)
+      << st.sizeNote;
+  EXPECT_NE(st.sizeNote.find("below the 200 fps asked"), std::string::npos) << st.sizeNote;
+  // The frames now come at that size.
+  LiveFrame f = s->waitFrame(0, 60);
+  for (int k = 0; k < 100; ++k) {
+    const Image img = decodeImage(f.jpeg->data(), f.jpeg->size());
+    if (img.width < 1280) {
+      EXPECT_LT(img.height, 720);
+      break;
+    }
+    f = s->waitFrame(f.seq, 60);
+    ASSERT_LT(k, 99) << "no frame drawn smaller";
+  }
+
+  c.adaptSize = false;
+  auto fixed = live("pyramid.json", nullptr, c);
+  fixed->play(1.0);
+  LiveSession::Viewer w(*fixed);
+  std::this_thread::sleep_for(std::chrono::seconds(4));  // twice what the other took to shrink
+  const LiveStats slow = fixed->stats();
+  EXPECT_GT(slow.frames, 10);
+  EXPECT_EQ(slow.width, 1280);
+  EXPECT_EQ(slow.height, 720);
+  EXPECT_EQ(slow.sizeNote, "");
+  EXPECT_GT(slow.drawMs, 0);
 }
 
 // Turns go in the order they were asked for, `slots` at a time.

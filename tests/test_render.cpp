@@ -20,6 +20,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -620,6 +621,37 @@ TEST(Images, ComparisonToleratesRoundingButNotChange) {
   EXPECT_FALSE(compareImages(a, Image(100, 99), o).match);
 }
 
+// A frame drawn smaller shown at a clip's size: flat stays flat, the same size is a copy, an
+// edge stays where it was (as a share of the width), a gradient stays a gradient.
+TEST(Images, ResizedKeepsColoursAndPlaces) {
+  const Image flat(40, 30, 0x336699ffu);
+  const Image big = resized(flat, 64, 48);
+  ASSERT_EQ(big.width, 64);
+  ASSERT_EQ(big.height, 48);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) ASSERT_EQ(std::vector<int>(big.pixel(x, y), big.pixel(x, y) + 4), (std::vector<int>{0x33, 0x66, 0x99, 0xff}));
+  Image ramp(32, 8);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 32; ++x) {
+      uint8_t* p = ramp.pixel(x, y);
+      p[0] = static_cast<uint8_t>(x < 16 ? 0 : 255), p[1] = static_cast<uint8_t>(8 * x), p[2] = 0, p[3] = 255;
+    }
+  EXPECT_EQ(resized(ramp, 32, 8).rgba, ramp.rgba);
+  const Image up = resized(ramp, 64, 16);
+  for (int x = 0; x < 64; ++x) {
+    if (x < 31) {
+      EXPECT_EQ(up.pixel(x, 5)[0], 0) << x;
+    }
+    if (x > 32) {
+      EXPECT_EQ(up.pixel(x, 5)[0], 255) << x;
+    }
+    if (x > 0) {
+      EXPECT_GE(up.pixel(x, 5)[1], up.pixel(x - 1, 5)[1]) << x;
+    }
+  }
+  EXPECT_NEAR(up.pixel(33, 5)[1], 8 * (33.5 / 2 - 0.5), 1);  // the source's value at that place
+}
+
 // ---- anti-aliasing (render/fxaa.h) ----
 
 namespace {
@@ -729,6 +761,40 @@ TEST(Fxaa, ANegativeStrideReadsRowsBottomUp) {
   fxaa(in.rgba.data() + 5 * 8 * 4, -8 * 4, 8, 6, out);
   EXPECT_EQ(out.pixel(0, 0)[0], kDark[0]);
   EXPECT_EQ(out.pixel(0, 5)[0], kBright[0]);
+}
+
+// The video's filter on the raw frame itself (finishInPlace) blends exactly the pixels, and to
+// exactly the colours, that finishFrame's copy does; the rows stay bottom-up, text is kept.
+TEST(Fxaa, InPlaceOnTheRawFrameBlendsAsTheCopyDoes) {
+  const int w = 96, h = 40;
+  const Image drawn = lumaFrame(w, h, aboveLine);
+  RawFrame raw;
+  raw.width = w;
+  raw.height = h;
+  raw.keep = {PixelRect{0, 0, w / 4, h}};
+  raw.rgba.resize(static_cast<size_t>(w) * h * 4);
+  for (int y = 0; y < h; ++y) std::copy_n(drawn.pixel(0, y), 4 * w, &raw.rgba[static_cast<size_t>(h - 1 - y) * w * 4]);
+  Image copied;
+  const FxaaStats byCopy = finishFrame(raw, copied);
+  RawFrame inPlace = raw;
+  const FxaaStats byPlace = finishInPlace(inPlace);
+  EXPECT_GT(byPlace.edgePixels, w / 2);
+  EXPECT_EQ(byPlace.edgePixels, byCopy.edgePixels);
+  int changed = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const uint8_t* p = &inPlace.rgba[(static_cast<size_t>(h - 1 - y) * w + x) * 4];
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(p[c], copied.pixel(x, y)[c]) << x << "," << y;
+      changed += !std::equal(p, p + 3, drawn.pixel(x, y));
+      if (x < w / 4) {
+        ASSERT_TRUE(std::equal(p, p + 3, drawn.pixel(x, y))) << "text kept at " << x << "," << y;
+      }
+    }
+  EXPECT_GT(changed, 0);
+  RawFrame plain = raw;
+  plain.fxaa = false;  // no filter asked: left as drawn
+  EXPECT_EQ(finishInPlace(plain).edgePixels, 0);
+  EXPECT_EQ(plain.rgba, raw.rgba);
 }
 
 // ---- text ----
@@ -856,6 +922,19 @@ TEST(Video, Yuv420IsBt601LimitedRangeAsFfmpegMakesIt) {
       chromaOff += std::abs(int(out[i]) - int(theirs[i])) > 1;
   }
   EXPECT_LT(chromaOff, static_cast<long long>(luma / 2 / 100));  // under 1 % of U and V samples
+}
+
+// GL's bottom-up rows read through a negative stride convert as the flipped image does.
+TEST(Video, Yuv420ThroughANegativeStrideIsTheFlippedFrames) {
+  const Image frame = readPng(SUBSTEP_SOURCE_DIR "/tests/snapshots/shapes_contacts.png");
+  const long stride = 4L * frame.width;
+  std::vector<uint8_t> bottomUp(frame.rgba.size());
+  for (int y = 0; y < frame.height; ++y)
+    std::copy_n(frame.pixel(0, y), stride, &bottomUp[static_cast<size_t>(frame.height - 1 - y) * stride]);
+  std::vector<uint8_t> expected, got;
+  rgbaToYuv420(frame, expected);
+  rgbaToYuv420(bottomUp.data() + stride * (frame.height - 1), -stride, frame.width, frame.height, got);
+  EXPECT_EQ(got, expected);
 }
 
 // ---- frame sinks ----

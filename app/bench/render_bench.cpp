@@ -15,6 +15,8 @@
 // (llvmpipe's threads rasterise one pass while the main thread prepares the next), so their sum
 // can differ from the untimed median. The load average at start and end says how busy the
 // machine was. Exit status: 0 done, 2 bad input, 3 a scene diverged, 1 other failures.
+#include "app/bench/bench_stats.h"
+#include "app/bench/render_rates.h"
 #include "app/common.h"
 #include "app/render_options.h"
 #include "render/gl_renderer.h"
@@ -58,11 +60,10 @@ struct Stats {
 Stats stats(std::vector<double> v) {
   Stats s;
   if (v.empty()) return s;
-  std::sort(v.begin(), v.end());
+  s.median = median(v);
+  s.min = *std::min_element(v.begin(), v.end());
+  s.max = *std::max_element(v.begin(), v.end());
   const size_t n = v.size();
-  s.median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-  s.min = v.front();
-  s.max = v.back();
   for (double x : v) s.mean += x / static_cast<double>(n);
   return s;
 }
@@ -82,6 +83,8 @@ struct Options {
   std::string size = "1280x720", aa, camera, save;
   std::vector<std::string> variants;
   bool noHud = false;
+  bool rates = false;
+  RatesOptions ratesOptions;
 };
 
 // A renderer setting to time: the command line's, or one --variant "samples=4,aa=none,shadow=1024".
@@ -287,6 +290,16 @@ int benchScene(const std::shared_ptr<const Scene>& shared, const Options& o, con
 int run(const Options& o) {
   int width = 0, height = 0;
   parseFrameSize(o.size, width, height);
+  if (o.rates) {
+    RatesOptions r = o.ratesOptions;
+    r.size = std::to_string(width) + "x" + std::to_string(height);
+    std::vector<std::string> files = o.scenes;
+    if (files.empty()) files = {assetsDir() + "/scenes/pyramid.json", assetsDir() + "/scenes/ragdoll_pile.json"};
+    std::cout << "substep-render-bench --rates\nload average at start: " << loadText() << "\n";
+    const int status = runRates(r, loadScenes(files), width, height);
+    std::cout << "load average at end: " << loadText() << "\n";
+    return status;
+  }
   const std::vector<std::shared_ptr<const Scene>> scenes = loadScenes(o.scenes);
   const std::vector<Variant> variants = variantsOf(o);
   printHeader(o, width, height);
@@ -328,5 +341,19 @@ int main(int argc, char** argv) {
                  "--variant samples=1,aa=fxaa,shadow=512 (keys samples, aa, shadow)");
   app.add_option("--save", o.save, "Also write each scene's last frame to this folder as SCENE.png")
       ->check(CLI::ExistingDirectory);
+  RatesOptions& r = o.ratesOptions;
+  app.add_flag("--rates", o.rates,
+               "Instead: the video's and the stream's frame rates against the drawing alone, in rounds, with the targets' "
+               "verdicts (scenes default to pyramid.json and ragdoll_pile.json)");
+  app.add_option("--rounds", r.rounds, "--rates: rounds, each measuring every scene (default 3)")->check(CLI::Range(1, 100));
+  app.add_option("--seconds", r.seconds, "--rates: simulated seconds of each video (default 5)")->check(CLI::Range(0.1, 600.0));
+  app.add_option("--fps", r.fps, "--rates: the video's frames per second (default 60)")->check(CLI::Range(1, 240));
+  app.add_option("--stream-seconds", r.streamSeconds, "--rates: wall seconds of each live session, 2 of them warm-up (default 8)")
+      ->check(CLI::Range(3.0, 600.0));
+  app.add_option("--stream-fps", r.streamFps, "--rates: the rate asked of the live session (default 30, serve's)")
+      ->check(CLI::Range(1, 60));
+  app.add_flag("!--fixed-size", r.adaptSize, "--rates: the live session keeps its size (default: it lowers it when the drawing cannot keep up)");
+  app.add_flag("--check", r.check, "--rates: exit status 1 when a target is not met");
+  app.add_option("--substep", r.substep, "--rates: the substep program (default: the one beside this one)");
   return runCommandLine(app, argc, argv, "substep-render-bench", [&] { return run(o); });
 }

@@ -159,6 +159,7 @@ json statsJson(const LiveStats& s) {
   return {{"seq", s.seq},          {"frames", s.frames},   {"playing", s.playing},     {"seeking", s.seeking},
           {"speed", s.speed},      {"achieved", s.achieved}, {"behind", s.behind},     {"fps", s.fps},
           {"physics_ms", s.physicsMs}, {"draw_ms", s.drawMs}, {"encode_ms", s.encodeMs}, {"jpeg_bytes", s.jpegBytes},
+          {"frame_width", s.width}, {"frame_height", s.height}, {"size_note", s.sizeNote},
           {"status", s.status},    {"panels", panels},
           {"first", s.first},      {"last", s.last},       {"shown", s.shown},         {"shown_step", s.shownStep},
           {"live", s.live},        {"recorded", s.recorded}};

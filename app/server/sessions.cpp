@@ -168,6 +168,7 @@ LiveConfig Sessions::config() const {
   c.jpegQuality = o_.jpegQuality;
   c.historySeconds = o_.history;
   c.timeline = {o_.timelineSeconds, static_cast<size_t>(o_.timelineMb) << 20};
+  c.adaptSize = o_.adaptSize;
   c.ffmpeg = ffmpeg_;
   c.drawGate = drawGate_;
   c.encodeGate = encodeGate_;

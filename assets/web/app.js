@@ -404,7 +404,8 @@ function bindMouse() {
     img.classList.add('dragging');
     down.lastX = e.clientX;
     down.lastY = e.clientY;
-    const scale = img.naturalWidth ? img.naturalWidth / img.clientWidth : 1;
+    // In the session's pixels (its size, whatever size the frames are drawn at).
+    const scale = img.clientWidth ? ((S.state && S.state.width) || img.naturalWidth || img.clientWidth) / img.clientWidth : 1;
     if (down.pan || e.shiftKey) queueCamera({ pan: [dx * scale, dy * scale] });
     else queueCamera({ rotate: [-dx * 0.3, dy * 0.3] });
   });
@@ -448,11 +449,12 @@ async function flushCamera() {
   flushCamera();
 }
 
-// The pixel of the frame under the pointer: from the displayed size of the image to the frame's.
+// The pixel under the pointer in the session's size, which the API's x and y are in (frames drawn
+// smaller while the drawing cannot keep up are shown stretched to it).
 function framePixel(e) {
   const img = $('view');
   const r = img.getBoundingClientRect();
-  const w = img.naturalWidth || S.state.width, h = img.naturalHeight || S.state.height;
+  const w = (S.state && S.state.width) || img.naturalWidth, h = (S.state && S.state.height) || img.naturalHeight;
   const clamp = (v, n) => Math.max(0, Math.min(n - 1, v));
   return { x: clamp(((e.clientX - r.left) / r.width) * w, w), y: clamp(((e.clientY - r.top) / r.height) * h, h) };
 }
@@ -858,6 +860,11 @@ function showStats(st) {
     rt.className = 'badge ok';
     rt.textContent = st.playing ? `real time ${st.fps.toFixed(0)} fps` : 'paused';
     rt.title = '';
+    if (st.size_note) {
+      rt.className = 'badge slow';
+      rt.textContent += `, drawn at ${st.frame_width}x${st.frame_height}`;
+      rt.title = st.size_note;
+    }
   }
   if (!diverged) S.shownStatus = false;
   if (S.state) {
@@ -900,7 +907,7 @@ function showStatsTable(st) {
     p.contacts, num(1e3 * p.penetration, 2), num(1e3 * p.joint_error, 2), num(p.kinetic, 2), p.diverged]));
   const html = rows.map((r, k) => `<tr>${r.slice(0, 11).map((c) => k === 0 ? `<th>${c}</th>` : `<td${r[11] ? ' class="bad"' : ''}>${escapeHtml(String(c))}</td>`).join('')}</tr>`).join('');
   $('stats').innerHTML = html +
-    `<tr><td colspan="11">frame: physics ${num(st.physics_ms, 1)} ms, draw ${num(st.draw_ms, 1)} ms, JPEG ${num(st.encode_ms, 1)} ms (${(st.jpeg_bytes / 1024).toFixed(0)} KiB), ${num(st.fps, 1)} fps</td></tr>`;
+    `<tr><td colspan="11">frame: physics ${num(st.physics_ms, 1)} ms, draw ${num(st.draw_ms, 1)} ms, JPEG ${num(st.encode_ms, 1)} ms (${(st.jpeg_bytes / 1024).toFixed(0)} KiB), ${num(st.fps, 1)} fps at ${st.frame_width}x${st.frame_height}${st.size_note ? ` (${escapeHtml(st.size_note)})` : ''}</td></tr>`;
 }
 
 function num(v, digits) { return v === null || v === undefined || !Number.isFinite(v) ? '-' : v.toFixed(digits); }
