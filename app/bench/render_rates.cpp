@@ -32,7 +32,6 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
 
 namespace substep::app {
@@ -135,7 +134,7 @@ StreamRun streamRun(const std::shared_ptr<const Scene>& scene, const RatesOption
   LiveSession s(scene, {{resolveSettings(*scene, {}), ""}}, look, c);
   LiveSession::Viewer viewer(s);
   s.play(1.0);
-  std::vector<double> fps, draw, encode, ratio;
+  std::vector<double> fps, draw, encode;
   const auto t0 = Clock::now();
   LiveFrame f;
   long long lastStats = 0;
