@@ -1,13 +1,27 @@
 #include "lab/advise.h"
 
+#include "lab/verdict.h"
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <map>
 
 namespace substep::lab {
 
-std::string Target::text() const {
+std::string Target::text(const Scene* scene) const {
+  if (metric == "criteria") {
+    std::string t = "passes the scene's criteria";
+    if (!scene || !scene->criteria) return t;
+    const char* sep = ": ";
+    for (const auto& [name, at] : scene->criteria->pass) t += sep + std::string(metricLabel(name)) + " <= " + formatMetric(name, at), sep = ", ";
+    const SceneCriteria& c = *scene->criteria;
+    if (c.moving) t += sep + std::string("the sliding bodies move at least ") + formatLength(c.moving->atLeast), sep = ", ";
+    if (c.stayIn) t += sep + std::string("a body stays inside its box"), sep = ", ";
+    if (c.turns) t += sep + std::string("a body turns at least ") + formatMetric("joint_angle_error", c.turns->atLeast);
+    return t;
+  }
   if (metric == "stand") return "stands for " + numberText(bound) + " s (no body moves beyond the scene's tolerance, no divergence)";
   return std::string(metricLabel(metric)) + " <= " + formatMetric(metric, bound);
 }
@@ -79,17 +93,51 @@ double estimatedWork(const Method& m, const Scene& scene) {
 
 namespace {
 
+// A time in a run, as people read it: "0.00833 s", "1.5 s".
+std::string timeText(double t) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g s", t);
+  return buf;
+}
+
 // Quantities that only grow during a run: a run can stop once one is beyond its bound.
 bool growsOnly(const std::string& metric) {
   return metric == "penetration" || metric == "joint_error" || metric == "joint_angle_error" || metric == "limit_excess" ||
          metric == "displacement" || metric == "speed";
 }
 
-std::string missedText(const std::string& metric, double value, double bound) {
-  return std::string(metricLabel(metric)) + " " + formatMetric(metric, value) + " > " + formatMetric(metric, bound);
-}
+}  // namespace
+
+
+namespace {
+
+std::string missedText(const std::string& metric, double value, double bound) { return comparisonText(metric, value, ">", bound); }
 
 }  // namespace
+
+FoundReference findConvergedReference(const Scene& scene, double seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  FoundReference f;
+  // A1 solves each step's contacts and joints exactly, so it converges fastest where it can run;
+  // A3 re-formulates between sub-steps and is the one that converges on scenes A1 refuses.
+  for (const char* method : {"a1:h=1/480", "a1:h=1/960", "a3:n=8:m=4:h=1/480", "a3:n=8:m=4:h=1/960"}) {
+    SceneReference r;
+    r.kind = SceneReference::Kind::Converged;
+    r.method = method;
+    try {
+      f.prepared = prepareReference(scene, r, seconds);
+      f.reference = r;
+      f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      return f;
+    } catch (const ReferenceError& e) {
+      f.rejected.push_back(e.what());
+    }
+  }
+  std::string why = "no converged reference for " + scene.file + " over " + numberText(seconds) + " s:";
+  for (const std::string& r : f.rejected) why += "\n  " + r;
+  throw ReferenceError(why + "\nGive the scene a criteria.reference, a shorter --seconds, or a target that needs none "
+                              "(--max-penetration, --max-joint-error, --stand)");
+}
 
 Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<void(size_t, size_t, const Candidate&)>& progress) {
   std::vector<Method> candidates = o.candidates.empty() ? defaultCandidates() : o.candidates;
@@ -97,16 +145,25 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
   for (size_t i = 0; i < candidates.size(); ++i) order.emplace_back(estimatedWork(candidates[i], scene), i);
   std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
 
-  std::optional<PreparedReference> reference;
-  if (scene.criteria && scene.criteria->reference) reference = prepareReference(scene, *scene.criteria->reference, o.seconds);
+  std::optional<PreparedReference> reference = o.reference;
+  if (!reference && scene.criteria && scene.criteria->reference) reference = prepareReference(scene, *scene.criteria->reference, o.seconds);
   Advice a;
   a.total = candidates.size();
+  const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
   double cheapestPassWork = INFINITY;
   int passes = 0;
-  for (const auto& [work, index] : order) {
-    if ((passes >= 2 && work > 1.5 * cheapestPassWork) || (passes == 1 && work > 3 * cheapestPassWork)) break;
-    if (static_cast<int>(a.tried.size()) >= o.budget) {
+  // Beyond what the cheapest that met could lose to: its measured cost may be off from the
+  // estimate by 1.5x once two met, 3x while one has.
+  auto ruledOut = [&](double work) {
+    return (passes >= 2 && work > 1.5 * cheapestPassWork) || (passes == 1 && work > 3 * cheapestPassWork);
+  };
+  for (size_t k = 0; k < order.size(); ++k) {
+    const auto& [work, index] = order[k];
+    if (ruledOut(work)) break;
+    if ((o.maxRuns > 0 && static_cast<int>(a.tried.size()) >= o.maxRuns) || elapsed() >= o.timeBudget) {
       a.budgetSpent = true;
+      for (size_t r = k; r < order.size() && !ruledOut(order[r].first); ++r) a.notRun.push_back(candidates[order[r].second]);
       break;
     }
     Candidate c;
@@ -117,12 +174,19 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
     setup.stop = [&](const Metrics& m, double t) -> std::string {
       for (const Target& target : o.targets) {
         if (target.metric == "stand") {
-          if (m.collapseTime) return "moved beyond the tolerance at " + numberText(*m.collapseTime) + " s";
+          if (m.collapseTime) return "moved beyond the tolerance at " + timeText(*m.collapseTime);
+          continue;
+        }
+        if (target.metric == "criteria") {
+          for (const auto& [name, at] : scene.criteria->pass) {
+            const std::optional<double> v = growsOnly(name) ? metricValue(m, name) : std::nullopt;
+            if (v && *v > at) return missedText(name, *v, at) + " at " + timeText(t);
+          }
           continue;
         }
         if (!growsOnly(target.metric)) continue;
         const std::optional<double> v = metricValue(m, target.metric);
-        if (v && *v > target.bound) return missedText(target.metric, *v, target.bound) + " at " + numberText(t) + " s";
+        if (v && *v > target.bound) return missedText(target.metric, *v, target.bound) + " at " + timeText(t);
       }
       return "";
     };
@@ -134,6 +198,17 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
       if (target.metric == "stand") {
         if (c.run.metrics.collapseTime && c.missed.empty()) c.missed = "moved beyond the tolerance";
         c.meets = c.meets && !c.run.metrics.collapseTime;
+        continue;
+      }
+      if (target.metric == "criteria") {
+        const Verdict v = judge(scene, c.run);
+        double worst = 0;
+        for (const Check& k : v.checks) worst = std::max(worst, k.ratio);
+        if (&target == &o.targets.front()) c.value = c.run.refused ? INFINITY : worst;
+        if (v.result != Verdict::Result::Pass) {
+          c.meets = false;
+          if (c.missed.empty()) c.missed = v.figure;
+        }
         continue;
       }
       const std::optional<double> v = metricValue(c.run.metrics, target.metric);
@@ -158,6 +233,7 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
     if (progress) progress(a.tried.size(), order.size(), a.tried.back());
   }
   a.searched = a.tried.size();
+  a.seconds = elapsed();
   // Rank what met the targets by measured cost per simulated second.
   for (size_t i = 0; i < a.tried.size(); ++i) {
     const Candidate& c = a.tried[i];

@@ -1,5 +1,6 @@
 #include "lab/chart.h"
 
+#include "lab/chart_labels.h"
 #include "lab/metrics.h"
 #include "lab/method.h"
 #include "lab/record.h"
@@ -10,6 +11,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 namespace substep::lab {
 
@@ -107,57 +109,155 @@ std::string zeroNote(double floor) {
          "graph 0.03 font ',8'\n";
 }
 
-Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::string& metric, const std::string& step, bool mixedSteps) {
+// The Pareto chart's frame in pixels, fixed so that labels can be placed where gnuplot will draw
+// them: the plot area, the ranges it spans (log10) and the list under it.
+struct Frame {
+  double width = 0, height = 0;            // the whole image [px]
+  Box plot;                                // the plot area [px], y downwards
+  double lx0 = 0, lx1 = 1, ly0 = 0, ly1 = 1;  // log10 of the axis ranges
+  double px(double x) const { return plot.x0 + (std::log10(x) - lx0) / (lx1 - lx0) * (plot.x1 - plot.x0); }
+  double py(double y) const { return plot.y1 - (std::log10(y) - ly0) / (ly1 - ly0) * (plot.y1 - plot.y0); }
+  std::string screen(double x, double y) const { return "screen " + num(x / width) + ", screen " + num(1 - y / height); }
+};
+
+// A log range around [lo, hi] with room for the labels beside the outermost points.
+std::pair<double, double> logRange(double lo, double hi, double below, double above) {
+  if (!(hi > lo)) lo /= 4, hi *= 4;
+  return {std::log10(lo / below), std::log10(hi * above)};
+}
+
+// Tics for a log axis over [10^l0, 10^l1]: gnuplot's own are at decades only, one or none on a
+// narrow range; then 1, 2 and 5 of each decade.
+std::string logTics(const char* axis, double l0, double l1) {
+  if (l1 - l0 > 2.5) return "";
+  std::string t;
+  for (int e = static_cast<int>(std::floor(l0)); e <= static_cast<int>(std::ceil(l1)); ++e)
+    for (double m : {1.0, 2.0, 5.0}) {
+      const double v = m * std::pow(10.0, e);
+      if (std::log10(v) >= l0 && std::log10(v) <= l1) t += (t.empty() ? "" : ", ") + num(v);
+    }
+  return t.empty() ? "" : std::string("set ") + axis + " (" + t + ")\n";
+}
+
+Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::string& metric, const std::string& step, bool mixedSteps,
+                  const ChartOptions& options) {
   Chart c;
   c.name = scene + "-pareto";
   const double floor = logFloor(pts);
   double top = 0;
+  bool zero = false;
   for (Point& p : pts) {
     if (p.error == 0) {
       p.error = floor;
       p.label += p.label.empty() ? "0" : " (0)";
+      zero = true;
     }
     if (std::isfinite(p.error)) top = std::max(top, p.error);
   }
-  top = top > 0 ? top * 4 : 1;
-  std::ostringstream data, plot;
-  int index = 0;
-  bool zero = false;
-  for (const std::string& fam : kFamilies) {
-    std::vector<const Point*> mine;
-    for (const Point& p : pts)
-      if (p.family == fam && !p.diverged && std::isfinite(p.error) && std::isfinite(p.cost)) mine.push_back(&p);
-    if (mine.empty()) continue;
-    for (const Point* p : mine) {
-      data << num(p->cost) << ' ' << num(p->error) << ' ' << gpString(p->label) << '\n';
-      zero = zero || p->error == floor;
-    }
-    data << "\n\n";
-    plot << (index ? ", \\\n     " : "plot ") << "'@DATA@' index " << index << " using 1:2 with points pt 7 ps 1.4 lc rgb '"
-         << colour(fam) << "' title " << gpString(fam) << ", \\\n     '' index " << index
-         << " using 1:2:3 with labels offset char 0.6,0.6 left font ',8' tc rgb '" << colour(fam) << "' notitle";
-    ++index;
+  top = top > 0 ? top * 4 : 1;  // where diverged runs are drawn
+  std::vector<const Point*> ok, bad;
+  for (const Point& p : pts) {
+    if (!std::isfinite(p.cost)) continue;
+    if (!p.diverged && std::isfinite(p.error)) ok.push_back(&p);
+    if (p.diverged) bad.push_back(&p);
   }
-  std::vector<const Point*> bad;
-  for (const Point& p : pts)
-    if (p.diverged && std::isfinite(p.cost)) bad.push_back(&p);
-  if (!bad.empty()) {
-    for (const Point* p : bad) data << num(p->cost) << ' ' << num(top) << ' ' << gpString(p->family + " " + p->label) << '\n';
-    data << "\n\n";
-    plot << (index ? ", \\\n     " : "plot ") << "'@DATA@' index " << index
-         << " using 1:2 with points pt 2 ps 2 lw 2 lc rgb '#000000' title 'diverged', \\\n     '' index " << index
-         << " using 1:2:3 with labels offset char 0.6,-0.8 left font ',8' notitle";
-    ++index;
+  c.title = scene + ": " + metricLabel(metric) + " against cost (h = " + step + (mixedSteps ? " unless labelled" : "") + ")";
+  const std::string x = "cost per simulated second [ms] (median of the repeats)";
+  if (ok.empty() && bad.empty()) {
+    c.script = header(c.title, x, yLabel(metric)) + "set label 1 'no finite runs' at graph 0.4, graph 0.5\nplot 2 notitle\n";
+    c.notes.push_back("Pareto front: none");
+    return c;
   }
   // The front: the runs no other beats on both cost and error.
   std::vector<std::pair<double, double>> xy;
-  std::vector<const Point*> ok;
-  for (const Point& p : pts)
-    if (!p.diverged && std::isfinite(p.error) && std::isfinite(p.cost)) {
-      xy.emplace_back(p.cost, p.error);
-      ok.push_back(&p);
-    }
+  for (const Point* p : ok) xy.emplace_back(p->cost, p->error);
   const std::vector<size_t> front = paretoFront(xy);
+  std::set<const Point*> onFront;
+  for (size_t i : front) onFront.insert(ok[i]);
+
+  // Who is labelled first: the front by cost, then the others by cost, then the diverged.
+  std::vector<const Point*> order;
+  for (size_t i : front) order.push_back(ok[i]);
+  std::vector<const Point*> rest;
+  for (const Point* p : ok)
+    if (!onFront.count(p)) rest.push_back(p);
+  std::stable_sort(rest.begin(), rest.end(), [](const Point* a, const Point* b) { return a->cost < b->cost; });
+  order.insert(order.end(), rest.begin(), rest.end());
+  order.insert(order.end(), bad.begin(), bad.end());
+  auto textOf = [](const Point* p) { return p->diverged ? p->family + (p->label.empty() ? "" : " " + p->label) : p->label; };
+
+  Frame f;
+  f.width = options.width;
+  double xlo = INFINITY, xhi = 0, ylo = INFINITY, yhi = bad.empty() ? 0 : top;
+  for (const Point* p : order) {
+    xlo = std::min(xlo, p->cost), xhi = std::max(xhi, p->cost);
+    const double y = p->diverged ? top : p->error;
+    ylo = std::min(ylo, y), yhi = std::max(yhi, y);
+  }
+  std::tie(f.lx0, f.lx1) = logRange(xlo, xhi, 2, 3);
+  std::tie(f.ly0, f.ly1) = logRange(ylo, yhi, 2.5, 2.5);
+  // The list under the chart is sized by a first placement at the chart's own height; the list
+  // only adds height below, so the plot area and every place stay where they were.
+  f.height = options.height;
+  f.plot = {96, 45, f.width - 200, f.height - 62};  // room for the tick labels and the key
+  std::vector<LabelRequest> requests;
+  std::vector<Box> obstacles;
+  for (const Point* p : order) {
+    const double px = f.px(p->cost), py = f.py(p->diverged ? top : p->error);
+    requests.push_back({px, py, textOf(p)});
+    const double r = onFront.count(p) ? 9 : 6;  // the markers' radii: ps 2.2 open circle, ps 1.4 dot
+    obstacles.push_back({px - r, py - r, px + r, py + r});
+  }
+  // The front's steps (gnuplot's "steps": along at the first y, then up or down at the second x).
+  for (size_t k = 0; k + 1 < front.size(); ++k) {
+    const double x0 = f.px(xy[front[k]].first), y0 = f.py(xy[front[k]].second);
+    const double x1 = f.px(xy[front[k + 1]].first), y1 = f.py(xy[front[k + 1]].second);
+    obstacles.push_back({std::min(x0, x1), y0 - 2, std::max(x0, x1), y0 + 2});
+    obstacles.push_back({x1 - 2, std::min(y0, y1), x1 + 2, std::max(y0, y1)});
+  }
+  if (zero) obstacles.push_back(labelBox(std::string(68, 'x'), f.plot.x0 + 0.01 * (f.plot.x1 - f.plot.x0), f.plot.y1 - 0.03 * (f.plot.y1 - f.plot.y0)));
+  const std::vector<LabelPlacement> placed = placeLabels(requests, obstacles, f.plot);
+
+  // The list: every point whose label did not fit, with its number (its tag, when that fit) and
+  // its coordinates, in columns.
+  std::vector<std::string> list;
+  for (size_t i = 0; i < order.size(); ++i) {
+    if (!placed[i].number) continue;
+    const Point* p = order[i];
+    char at[96];
+    std::snprintf(at, sizeof at, "%s%.3g ms, %s", placed[i].kind == LabelPlacement::Kind::Tag ? "" : "(no tag) ", p->cost,
+                  p->diverged ? "diverged" : formatMetric(metric, p->error).c_str());
+    list.push_back(std::to_string(placed[i].number) + "  " + p->family + (p->label.empty() ? "" : " " + p->label) + ": " + at);
+  }
+  size_t longest = 0;
+  for (const std::string& t : list) longest = std::max(longest, t.size());
+  const double columnWidth = kLabelCharWidth * static_cast<double>(longest) + 24;
+  const size_t columns = list.empty() ? 1 : std::max<size_t>(1, static_cast<size_t>((f.width - 40) / columnWidth));
+  const size_t rows = (list.size() + columns - 1) / columns;
+  const double listTop = options.height + 4;
+  c.extraHeight = list.empty() ? 0 : static_cast<int>(std::ceil(20 + kLabelHeight * static_cast<double>(rows + 1)));
+  f.height = options.height + c.extraHeight;
+
+  std::ostringstream data, plot, labels;
+  int index = 0;
+  for (const std::string& fam : kFamilies) {
+    std::vector<const Point*> mine;
+    for (const Point* p : ok)
+      if (p->family == fam) mine.push_back(p);
+    if (mine.empty()) continue;
+    for (const Point* p : mine) data << num(p->cost) << ' ' << num(p->error) << '\n';
+    data << "\n\n";
+    plot << (index ? ", \\\n     " : "plot ") << "'@DATA@' index " << index << " using 1:2 with points pt 7 ps 1.4 lc rgb '"
+         << colour(fam) << "' title " << gpString(fam);
+    ++index;
+  }
+  if (!bad.empty()) {
+    for (const Point* p : bad) data << num(p->cost) << ' ' << num(top) << '\n';
+    data << "\n\n";
+    plot << (index ? ", \\\n     " : "plot ") << "'@DATA@' index " << index
+         << " using 1:2 with points pt 2 ps 2 lw 2 lc rgb '#000000' title 'diverged'";
+    ++index;
+  }
   std::string frontText;
   for (size_t i : front) {
     data << num(xy[i].first) << ' ' << num(xy[i].second) << '\n';
@@ -170,13 +270,32 @@ Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::s
          << " using 1:2 with points pt 6 ps 2.2 lw 1.5 lc rgb '#333333' notitle";
     ++index;
   }
-  c.title = scene + ": " + metricLabel(metric) + " against cost (h = " + step + (mixedSteps ? " unless labelled" : "") + ")";
+  int tag = 100;  // label numbers of their own, clear of the notes' (1, 10)
+  for (size_t i = 0; i < order.size(); ++i) {
+    if (placed[i].kind == LabelPlacement::Kind::None) continue;
+    const std::string text = placed[i].kind == LabelPlacement::Kind::Text ? requests[i].text : std::to_string(placed[i].number);
+    labels << "set label " << tag++ << ' ' << gpString(text) << " at " << f.screen(placed[i].x, placed[i].y) << " left font ',8' tc rgb '"
+           << (order[i]->diverged ? "#000000" : colour(order[i]->family)) << "' front\n";
+  }
+  if (!list.empty()) {
+    labels << "set label " << tag++ << ' ' << gpString("Not labelled on the chart (number: the tag beside the point; cost per simulated second, " + std::string(metricLabel(metric)) + "):")
+           << " at " << f.screen(20, listTop + 10) << " left font ',8'\n";
+    for (size_t k = 0; k < list.size(); ++k)
+      labels << "set label " << tag++ << ' ' << gpString(list[k]) << " at "
+             << f.screen(20 + columnWidth * static_cast<double>(k / rows), listTop + 10 + kLabelHeight * static_cast<double>(1 + k % rows))
+             << " left font ',8'\n";
+  }
   c.data = data.str();
-  std::string x = "cost per simulated second [ms] (median of the repeats)";
-  c.script = header(c.title, x, yLabel(metric)) + "set logscale xy\n" +
-             (zero ? zeroNote(floor) : "") +
-             (plot.str().empty() ? "set label 1 'no finite runs' at graph 0.4, graph 0.5\nplot 2 notitle\n" : plot.str() + "\n");
+  // The frame fixed in screen coordinates and the ranges stated, so the labels land where placed.
+  const std::string frame = "unset offsets\nset lmargin at screen " + num(f.plot.x0 / f.width) + "\nset rmargin at screen " +
+                            num(f.plot.x1 / f.width) + "\nset tmargin at screen " + num(1 - f.plot.y0 / f.height) +
+                            "\nset bmargin at screen " + num(1 - f.plot.y1 / f.height) + "\nset xrange [" + num(std::pow(10, f.lx0)) +
+                            ":" + num(std::pow(10, f.lx1)) + "]\nset yrange [" + num(std::pow(10, f.ly0)) + ":" + num(std::pow(10, f.ly1)) + "]\n" + logTics("xtics", f.lx0, f.lx1) +
+                            logTics("ytics", f.ly0, f.ly1);
+  c.script = header(c.title, x, yLabel(metric)) + "set logscale xy\n" + frame + (zero ? zeroNote(floor) : "") + labels.str() +
+             plot.str() + "\n";
   c.notes.push_back("Pareto front: " + (frontText.empty() ? std::string("none") : frontText));
+  if (!list.empty()) c.notes.push_back(std::to_string(list.size()) + (list.size() == 1 ? " point" : " points") + " not labelled on the chart, listed under it");
   return c;
 }
 
@@ -385,7 +504,7 @@ std::vector<Chart> makeCharts(const std::vector<json>& rows, const ChartOptions&
                           })->first;
     for (Point& p : pts) p.label = labelOf(*p.row, common);
     const std::string metric = metricOf(*pts.front().row, options);
-    charts.push_back(paretoChart(scene, pts, metric, stepText(common), steps.size() > 1));
+    charts.push_back(paretoChart(scene, pts, metric, stepText(common), steps.size() > 1, options));
     Chart c;
     if (substepsChart(scene, pts, metric, c)) charts.push_back(c);
     c = Chart{};
@@ -398,7 +517,7 @@ std::vector<Chart> makeCharts(const std::vector<json>& rows, const ChartOptions&
 
 std::string chartScript(const Chart& chart, const std::string& terminal, const std::string& output, const std::string& data,
                         const ChartOptions& options) {
-  const std::string size = std::to_string(options.width) + "," + std::to_string(options.height);
+  const std::string size = std::to_string(options.width) + "," + std::to_string(options.height + chart.extraHeight);
   const std::string term = terminal == "svg" ? "set terminal svg size " + size + " dynamic font 'DejaVu Sans,11' background '#ffffff'"
                                              : "set terminal pngcairo size " + size + " font 'DejaVu Sans,11' background '#ffffff'";
   std::string s = chart.script;

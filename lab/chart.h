@@ -27,6 +27,7 @@ struct Chart {
   std::string data;      // the data file's text (gnuplot blocks)
   std::string script;    // the gnuplot script, with @OUT@, @DATA@ and @TERMINAL@ to fill in
   std::vector<std::string> notes;  // what the chart says in words (fitted slopes, front), for the console
+  int extraHeight = 0;   // [px] below options.height: the list of points not labelled on the chart
 };
 
 // Every chart the rows allow. Rows are sweep records (lab/record.h).

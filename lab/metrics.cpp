@@ -76,31 +76,31 @@ const char* metricLabel(const std::string& name) {
 
 namespace {
 
-std::string significant(double x, const char* unit) {
+std::string significant(double x, const char* unit, int extraDigits) {
   char buf[64];
   const double a = std::abs(x);
-  const int decimals = a >= 100 ? 0 : a >= 10 ? 1 : a >= 1 ? 2 : 3;
+  const int decimals = (a >= 100 ? 0 : a >= 10 ? 1 : a >= 1 ? 2 : 3) + extraDigits;
   std::snprintf(buf, sizeof buf, "%.*f%s%s", decimals, x, unit[0] ? " " : "", unit);
   return buf;
 }
 
 }  // namespace
 
-std::string formatLength(double m) {
+std::string formatLength(double m, int extraDigits) {
   const double a = std::abs(m);
-  if (a < 0.01) return significant(m * 1e3, "mm");
-  if (a < 1) return significant(m * 1e2, "cm");
-  if (a < 1e4) return significant(m, "m");
+  if (a < 0.01) return significant(m * 1e3, "mm", extraDigits);
+  if (a < 1) return significant(m * 1e2, "cm", extraDigits);
+  if (a < 1e4) return significant(m, "m", extraDigits);
   return numberText(m) + " m";
 }
 
-std::string formatMetric(const std::string& name, double value) {
+std::string formatMetric(const std::string& name, double value, int extraDigits) {
   if (!std::isfinite(value)) return numberText(value);
   const std::string unit = metricUnit(name);
-  if (unit == "m") return formatLength(value);
-  if (unit == "rad") return significant(value * 180 / 3.14159265358979323846, "deg");
-  if (unit.empty()) return significant(value * 100, "%");
-  return significant(value, unit.c_str());
+  if (unit == "m") return formatLength(value, extraDigits);
+  if (unit == "rad") return significant(value * 180 / 3.14159265358979323846, "deg", extraDigits);
+  if (unit.empty()) return significant(value * 100, "%", extraDigits);
+  return significant(value, unit.c_str(), extraDigits);
 }
 
 PreparedReference prepareReference(const Scene& scene, const SceneReference& ref, double seconds) {
@@ -305,6 +305,14 @@ const Metrics& Probe::finish() {
     m_.movingLeast = least;
   }
   return m_;
+}
+
+std::string comparisonText(const std::string& metric, double value, const char* op, double bound) {
+  std::string v = formatMetric(metric, value), b = formatMetric(metric, bound);
+  // As many more digits as it takes for two different numbers not to print the same.
+  for (int more = 1; v == b && value != bound && more <= 6; ++more)
+    v = formatMetric(metric, value, more), b = formatMetric(metric, bound, more);
+  return std::string(metricLabel(metric)) + " " + v + " " + op + " " + b;
 }
 
 }  // namespace substep::lab

@@ -66,9 +66,12 @@ const char* metricUnit(const std::string& name);
 const char* metricLabel(const std::string& name);
 // A value as people read it: lengths in mm, cm or m, angles in degrees, shares in percent,
 // speeds in m/s, to three significant digits: "3.14 cm", "12.3 deg", "0.52 %".
-std::string formatMetric(const std::string& name, double value);
+std::string formatMetric(const std::string& name, double value, int extraDigits = 0);
 // A length alone, the same way.
-std::string formatLength(double metres);
+std::string formatLength(double metres, int extraDigits = 0);
+// "max joint error 1.004 cm > 1.00 cm": the quantity against its bound, with the digits it takes
+// for two different figures not to print the same.
+std::string comparisonText(const std::string& metric, double value, const char* op, double bound);
 
 // What a reference needs of a run, prepared once per scene (the converged run costs).
 struct PreparedReference {

@@ -23,7 +23,7 @@ Check checkAtMost(const std::string& name, std::optional<double> value, double b
   }
   c.ok = *value <= bound;
   c.ratio = bound > 0 ? *value / bound : (*value > 0 ? INFINITY : 0);
-  c.text = std::string(metricLabel(name)) + " " + formatMetric(name, *value) + (c.ok ? " <= " : " > ") + formatMetric(name, bound);
+  c.text = comparisonText(name, *value, c.ok ? "<=" : ">", bound);
   return c;
 }
 

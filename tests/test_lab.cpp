@@ -3,6 +3,7 @@
 #include "lab/advise.h"
 #include "lab/bullet_peer.h"
 #include "lab/chart.h"
+#include "lab/chart_labels.h"
 #include "lab/method.h"
 #include "lab/metrics.h"
 #include "lab/record.h"
@@ -18,6 +19,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
+#include <regex>
+#include <set>
 #include <unistd.h>
 
 using namespace substep;
@@ -375,8 +379,8 @@ TEST(Charts, EveryChartFromTheRecordsItNeeds) {
   EXPECT_EQ(makeCharts({rows[0]}, ChartOptions{}).size(), 1u);
   // Labels name h only where it is not the chart's common step, and the title says so.
   EXPECT_NE(charts[0].title.find("(h = 1/60 unless labelled)"), std::string::npos) << charts[0].title;
-  EXPECT_NE(charts[0].data.find("\"h=1/30\""), std::string::npos);
-  EXPECT_EQ(charts[0].data.find("m=4 h=1/60"), std::string::npos) << charts[0].data;
+  EXPECT_NE(charts[0].script.find("\"h=1/30\" at screen"), std::string::npos) << charts[0].script;
+  EXPECT_EQ(charts[0].script.find("m=4 h=1/60"), std::string::npos) << charts[0].script;
 }
 
 // A3/A4/A5 at one n each (the atlas's presets) is no chart against n; zero errors are drawn at a
@@ -388,13 +392,111 @@ TEST(Charts, OneNIsNoLineAndZeroIsLabelled) {
   const std::vector<Chart> charts = makeCharts(rows, ChartOptions{});
   ASSERT_EQ(charts.size(), 1u) << charts.back().name;
   EXPECT_EQ(charts[0].name, "z-pareto");
-  EXPECT_NE(charts[0].data.find("0.02 \"n=4 (0)\""), std::string::npos) << charts[0].data;
+  EXPECT_NE(charts[0].script.find("\"n=4 (0)\" at screen"), std::string::npos) << charts[0].script;
   EXPECT_NE(charts[0].script.find("a zero error is drawn at 0.02 (a tenth of the least other)"), std::string::npos)
       << charts[0].script;
   EXPECT_NE(charts[0].script.find("with points pt 6"), std::string::npos);  // the ring on the front
   // A second n for one family makes the chart.
   rows.push_back(fakeRow("z", "a5:n=8", "a5", 8, 1, 1.0 / 60, 0, 0.02));
   EXPECT_EQ(makeCharts(rows, ChartOptions{}).size(), 2u);
+}
+
+// Labels placed around clustered points: none overlaps another, covers a point or leaves the
+// area; what did not fit is numbered, in order.
+TEST(ChartLabels, ClearOfEachOtherAndOfThePoints) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> near(380, 460);  // 60 points within 80 px: most cannot have a label
+  std::vector<LabelRequest> requests;
+  std::vector<Box> points;
+  for (int i = 0; i < 60; ++i) {
+    const double x = near(rng), y = near(rng) - 150;
+    requests.push_back({x, y, "a5 n=" + std::to_string(i) + " m=1"});
+    points.push_back({x - 6, y - 6, x + 6, y + 6});
+  }
+  const Box area{100, 40, 860, 540};
+  const std::vector<LabelPlacement> placed = placeLabels(requests, points, area);
+  ASSERT_EQ(placed.size(), requests.size());
+  std::vector<Box> boxes;
+  int texts = 0, number = 0;
+  for (size_t i = 0; i < placed.size(); ++i) {
+    const LabelPlacement& p = placed[i];
+    if (p.kind == LabelPlacement::Kind::Text) ++texts;
+    if (p.kind != LabelPlacement::Kind::Text) {
+      EXPECT_EQ(p.number, ++number) << i;  // every other one is listed
+    }
+    if (p.kind == LabelPlacement::Kind::None) continue;
+    const std::string text = p.kind == LabelPlacement::Kind::Text ? requests[i].text : std::to_string(p.number);
+    const Box b = labelBox(text, p.x, p.y);
+    EXPECT_TRUE(b.inside(area)) << i;
+    for (const Box& q : points) EXPECT_FALSE(b.overlaps(q)) << i;
+    for (const Box& q : boxes) EXPECT_FALSE(b.overlaps(q)) << i;
+    boxes.push_back(b);
+  }
+  EXPECT_GT(texts, 5);      // the first ones get their label
+  EXPECT_LT(texts, 60);     // and not all fit: the list is tested
+  EXPECT_GT(boxes.size(), static_cast<size_t>(texts));  // some got a tag
+}
+
+// The Pareto chart of a crowded sweep (eight methods at one point, as chain.json gave, and a
+// seeded cluster): the labels the script places do not overlap, and every point is on the chart
+// by its label or in the list under it; a diverged run is listed or labelled with its family.
+TEST(Charts, LabelsNeverOverlapAndTheRestAreListed) {
+  std::vector<nlohmann::json> rows;
+  std::vector<std::string> labels;
+  for (int k = 0; k < 8; ++k) {
+    rows.push_back(fakeRow("c", "a5:n=" + std::to_string(k + 1) + ":m=4", "a5", k + 1, 4, 1.0 / 60, 0.01, 0.05));
+    labels.push_back("n=" + std::to_string(k + 1) + " m=4");
+  }
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int k = 0; k < 30; ++k) {
+    const std::string fam = k % 2 ? "a3" : "a4";
+    rows.push_back(fakeRow("c", fam + ":n=" + std::to_string(k + 10) + ":m=2", fam, k + 10, 2, 1.0 / 60, 0.005 * (1 + u(rng)),
+                           0.04 * (1 + u(rng))));
+    labels.push_back("n=" + std::to_string(k + 10) + " m=2");
+  }
+  nlohmann::json bad = fakeRow("c", "a2:m=3", "a2", 1, 3, 1.0 / 60, NAN, 0.02);
+  bad["diverged"] = true;
+  rows.push_back(bad);
+  const ChartOptions o;
+  const std::vector<Chart> charts = makeCharts(rows, o);
+  ASSERT_FALSE(charts.empty());
+  const Chart& c = charts[0];
+  ASSERT_EQ(c.name, "c-pareto");
+  EXPECT_GT(c.extraHeight, 0);
+  const double W = o.width, H = o.height + c.extraHeight;
+  const std::regex label(R"re(set label \d+ "([^"]*)" at screen ([-0-9.e]+), screen ([-0-9.e]+) left font ',8' tc)re");
+  std::vector<Box> boxes;
+  std::set<std::string> onChart;
+  std::string all = c.script;
+  for (std::sregex_iterator it(all.begin(), all.end(), label), end; it != end; ++it) {
+    const std::string text = (*it)[1];
+    const Box b = labelBox(text, std::stod((*it)[2]) * W, (1 - std::stod((*it)[3])) * H);
+    for (const Box& q : boxes) EXPECT_FALSE(b.overlaps(q)) << text;
+    boxes.push_back(b);
+    onChart.insert(text);
+  }
+  EXPECT_GT(onChart.size(), 5u);
+  int listed = 0;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    const std::string fam = rows[i]["family"].get<std::string>();
+    const bool inList = c.script.find("  " + fam + " " + labels[i] + ": ") != std::string::npos;
+    listed += inList;
+    EXPECT_TRUE(onChart.count(labels[i]) || inList) << labels[i];
+  }
+  EXPECT_GE(listed, 6);  // of the eight at one point, at most two find room
+  EXPECT_TRUE(onChart.count("a2 m=3") || c.script.find("  a2 m=3: 1") != std::string::npos) << c.script;
+  EXPECT_NE(c.script.find("title 'diverged'"), std::string::npos);
+  EXPECT_NE(chartScript(c, "png", "o.png", "d.dat", o).find("size 960," + std::to_string(600 + c.extraHeight)), std::string::npos);
+}
+
+// A failed comparison prints the digits that show why: never "1.00 cm > 1.00 cm".
+TEST(Advice, ComparisonsShowTheDigitsThatDiffer) {
+  EXPECT_EQ(comparisonText("joint_error", 0.01004, ">", 0.01), "max joint error 1.004 cm > 1.000 cm");
+  EXPECT_EQ(comparisonText("joint_error", 0.0100004, ">", 0.01), "max joint error 1.00004 cm > 1.00000 cm");
+  EXPECT_EQ(comparisonText("joint_error", 0.0131, ">", 0.01), "max joint error 1.31 cm > 1.00 cm");  // no more than needed
+  EXPECT_EQ(comparisonText("joint_error", 0.01, "<=", 0.01), "max joint error 1.00 cm <= 1.00 cm");  // equal is equal
+  EXPECT_EQ(checkAtMost("penetration", 0.0050004, 0.005).text, "max penetration 5.0004 mm > 5.0000 mm");
 }
 
 // Sweep specs, plans, shards, truncated outputs and merging.
