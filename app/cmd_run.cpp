@@ -55,6 +55,13 @@ class RunSummary final : public RunObserver {
     maxContacts = std::max(maxContacts, rep.contactPoints);
     sumPairs += rep.pairs;
     sumCached += rep.cachedPairs;
+    // Sleeping: the step's cost while every dynamic body sleeps against while any is awake.
+    asleepEnd = rep.asleep;
+    const bool settled = rep.asleep > 0 && rep.asleep == scene_.model.dynamicCount();
+    (settled ? settledSeconds : awakeSeconds) += r.seconds;
+    (settled ? settledSteps : awakeSteps) += 1;
+    if (settled && settledAt < 0) settledAt = e.state().time;
+    if (!settled) settledAt = -1;
     if (r.step % every_ == 0 || r.step == planned_) sample(*e.world(), &rep);
   }
   const FailureReport& failure() const { return watch_.report(); }
@@ -64,6 +71,10 @@ class RunSummary final : public RunObserver {
   long long maxIterations = 0, sumIterations = 0, sumPairs = 0, sumCached = 0;
   long long directMethods[4] = {0, 0, 0, 0};  // A1: steps answered by Dantzig, Lemke, Gauss-Seidel
   int maxContacts = 0;
+  int asleepEnd = 0;                  // dynamic bodies asleep after the last step
+  double settledAt = -1;              // since when every dynamic body sleeps [s]; -1: not now
+  double settledSeconds = 0, awakeSeconds = 0;
+  long long settledSteps = 0, awakeSteps = 0;
 
  private:
   void sample(const World& w, const StepReport* r) {
@@ -123,6 +134,11 @@ json metricsJson(const Scene& scene, const World& world, const RunSummary& sum, 
                   {"max_sag", f.maxSag},              {"max_sideways", f.maxSideways},
                   {"max_speed", f.maxSpeed},          {"max_energy_gain", f.maxEnergyGain},
                   {"collapsed_body", f.collapsedBody}};
+  if (settings.sleep)
+    j["sleep"] = {{"asleep", sum.asleepEnd},
+                  {"settled_at", sum.settledAt >= 0 ? json(sum.settledAt) : json(nullptr)},
+                  {"settled_ms_per_step", sum.settledSteps ? json(1e3 * sum.settledSeconds / static_cast<double>(sum.settledSteps)) : json(nullptr)},
+                  {"awake_ms_per_step", sum.awakeSteps ? json(1e3 * sum.awakeSeconds / static_cast<double>(sum.awakeSteps)) : json(nullptr)}};
   j["series"] = sum.series;
   return j;
 }
@@ -146,6 +162,16 @@ void printSummary(const Scene& scene, const World& world, const RunSummary& sum,
             << (d.body >= 0 ? scene.model.bodies[static_cast<size_t>(d.body)].name : "") << ")\n"
             << "verdict   " << f.verdict() << (f.collapsedBody.empty() ? "" : " (" + f.collapsedBody + ")")
             << "; fastest body " << f.maxSpeed << " m/s\n";
+  if (world.settings().sleep) {
+    std::cout << std::setprecision(3) << "asleep    " << sum.asleepEnd << " of " << scene.model.dynamicCount() << " dynamic bodies at the end";
+    if (sum.settledAt >= 0 && sum.settledSteps && sum.awakeSteps) {
+      const double settled = 1e3 * sum.settledSeconds / static_cast<double>(sum.settledSteps);
+      const double awake = 1e3 * sum.awakeSeconds / static_cast<double>(sum.awakeSteps);
+      std::cout << ", all since " << sum.settledAt << " s; a settled step " << settled << " ms against " << awake
+                << " ms awake (" << std::defaultfloat << std::setprecision(2) << settled / awake << "x)";
+    }
+    std::cout << "\n";
+  }
   if (world.settings().algorithm == Algorithm::A1)
     std::cout << "a1 solves " << sum.directMethods[1] << " steps by Dantzig, " << sum.directMethods[2] << " by Lemke, "
               << sum.directMethods[3] << " by Gauss-Seidel and polish\n";

@@ -214,6 +214,11 @@ std::vector<SettingSpec> makeTable() {
        "soft: joint damping ratio ζ", &S::jointDamping, same(2), {}},
       {"push_out", "", "push-out", K::Real, {0, 1e3}, {}, {A::Soft}, O::Extension, "push-out %s m/s", kNone,
        "soft: largest speed a contact pushes penetrating bodies apart [m/s]", &S::pushOut, same(3), {}},
+      {"sleep", "", "sleep", K::Flag, {0, 0}, {}, kEvery, O::Extension, "sleep", kNone,
+       "Islands (bodies joined by contacts) whose bodies all stay below 5 cm/s and 2 deg/s for half a second stop "
+       "stepping until a contact with a moving body or a push wakes them; islands with joints stay awake (an "
+       "extension; off in the report, the bench and the lab)",
+       &S::sleep, same(0), {}},
       {"direct_max_rows", "", "direct-max-rows", K::Integer, {1, 20000}, {}, {A::A1}, O::Limit, "rows<=%s", kNone,
        "a1: the largest MLCP it forms as a dense matrix [rows]; larger scenes are refused", &S::directMaxRows,
        same(1500), {}},

@@ -97,6 +97,7 @@ struct SolverSettings {
   double jointHertz;              // soft: joint stiffness [Hz]
   double jointDamping;            // soft: damping ratio ζ
   double pushOut;                 // soft: largest push-out speed [m/s]
+  bool sleep;                      // islands at rest for half a second stop stepping until woken
   int directMaxRows;              // A1: largest MLCP it forms densely [rows]
   double directWorkBudget;        // A1: floating-point operations per step (mlcp_direct.h)
 };

@@ -49,6 +49,88 @@ World::World(const Model& model, const SolverSettings& settings, const State& in
   setSettings(settings);
 }
 
+bool World::dormant(int body) const {
+  return model_.bodies[static_cast<size_t>(body)].isStatic || (!asleep_.empty() && asleep_[static_cast<size_t>(body)]);
+}
+
+void World::wake(int body) {
+  if (asleep_.empty() || !asleep_[static_cast<size_t>(body)]) return;
+  allAsleep_ = false;
+  const int island = sleepIsland_[static_cast<size_t>(body)];
+  for (size_t i = 0; i < asleep_.size(); ++i)
+    if (asleep_[i] && sleepIsland_[i] == island) {
+      asleep_[i] = 0;
+      still_[i] = 0;
+      ctx_.mass[i] = BodyMass{model_.bodies[i].invMass, model_.bodies[i].invInertia};
+    }
+}
+
+void World::wakeTouched() {
+  // Until nothing more wakes: a woken island may touch another sleeping one.
+  for (bool woke = true; woke;) {
+    woke = false;
+    for (const Manifold& m : manifolds_.manifolds()) {
+      if (m.count == 0) continue;
+      const bool sa = asleep(m.a), sb = asleep(m.b);
+      if (sa == sb) continue;  // both awake, or both asleep
+      const int sleeper = sa ? m.b : m.a, sleeping = sa ? m.a : m.b;
+      if (model_.bodies[static_cast<size_t>(sleeper)].isStatic) continue;
+      wake(sleeping);
+      woke = true;
+    }
+  }
+}
+
+void World::updateSleep() {
+  const size_t nb = model_.bodies.size();
+  // Islands of awake dynamic bodies joined by touching contacts (union-find); an island with a
+  // joint never sleeps.
+  std::vector<int> parent(nb);
+  for (size_t i = 0; i < nb; ++i) parent[i] = static_cast<int>(i);
+  auto find = [&](int i) {
+    while (parent[static_cast<size_t>(i)] != i) i = parent[static_cast<size_t>(i)] = parent[static_cast<size_t>(parent[static_cast<size_t>(i)])];
+    return i;
+  };
+  auto join = [&](int a, int b) {
+    a = find(a), b = find(b);
+    if (a != b) parent[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
+  };
+  for (const Manifold& m : manifolds_.manifolds())
+    if (m.count > 0 && !dormant(m.a) && !dormant(m.b)) join(m.a, m.b);
+  std::vector<char> jointed(nb, 0);
+  for (const Joint& j : model_.joints) {
+    if (!dormant(j.bodyA) && !dormant(j.bodyB)) join(j.bodyA, j.bodyB);
+    for (int b : {j.bodyA, j.bodyB})
+      if (!model_.bodies[static_cast<size_t>(b)].isStatic) jointed[static_cast<size_t>(b)] = 1;
+  }
+  const double dt = settings_.dt;
+  std::vector<double> leastStill(nb, INFINITY);
+  std::vector<char> islandJointed(nb, 0);
+  for (size_t i = 0; i < nb; ++i) {
+    if (dormant(static_cast<int>(i))) continue;
+    const BodyState& s = state_.bodies[i];
+    const bool still = s.v.norm() < kSleepLinear && s.w.norm() < kSleepAngular;
+    still_[i] = still ? still_[i] + dt : 0;
+    const size_t r = static_cast<size_t>(find(static_cast<int>(i)));
+    leastStill[r] = std::min(leastStill[r], still_[i]);
+    islandJointed[r] = islandJointed[r] || jointed[i];
+  }
+  for (size_t i = 0; i < nb; ++i) {
+    if (dormant(static_cast<int>(i))) continue;
+    const size_t r = static_cast<size_t>(find(static_cast<int>(i)));
+    if (islandJointed[r] || leastStill[r] < kTimeToSleep) continue;
+    asleep_[i] = 1;
+    sleepIsland_[i] = static_cast<int>(r);
+    state_.bodies[i].v.setZero();
+    state_.bodies[i].w.setZero();
+    ctx_.mass[i] = BodyMass{};  // as a static body to the steppers, until woken
+  }
+  int count = 0;
+  for (char a : asleep_) count += a;
+  report_.asleep = count;
+  allAsleep_ = count > 0 && count == model_.dynamicCount();
+}
+
 World::~World() = default;
 
 void World::setSettings(const SolverSettings& settings) {
@@ -107,9 +189,10 @@ bool World::geometry() {
     const Body& B = model_.bodies[static_cast<size_t>(b)];
     const Pose pA = state_.bodies[static_cast<size_t>(a)].pose();
     const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
-    // A pair that has barely moved relative to itself since its points were found keeps them.
+    // A pair that has barely moved relative to itself since its points were found keeps them; a
+    // pair of which neither body moves (static or asleep) keeps them too, for when it wakes.
     const Manifold* old = manifolds_.previous(a, b);
-    if (old && pairShiftBelow(*old, pA, pB, kPairCacheShift)) {
+    if (old && ((!asleep_.empty() && dormant(a) && dormant(b)) || pairShiftBelow(*old, pA, pB, kPairCacheShift))) {
       manifolds_.reuse(*old, frames_[static_cast<size_t>(a)], frames_[static_cast<size_t>(b)]);
       ++report_.cachedPairs;
       continue;
@@ -136,6 +219,20 @@ bool World::geometry() {
   return true;
 }
 
+const std::vector<Manifold>& World::solvedManifolds() {
+  if (asleep_.empty()) return manifolds_.manifolds();
+  // Only pairs with an awake dynamic body: a pair of sleeping (or static) bodies has no row.
+  active_.clear();
+  activeAt_.clear();
+  const std::vector<Manifold>& all = manifolds_.manifolds();
+  for (size_t k = 0; k < all.size(); ++k)
+    if (!dormant(all[k].a) || !dormant(all[k].b)) {
+      active_.push_back(all[k]);
+      activeAt_.push_back(k);
+    }
+  return active_;
+}
+
 void World::formulate() {
   for (size_t i = 0; i < state_.bodies.size(); ++i) {
     ctx_.poses[i] = state_.bodies[i].pose();
@@ -144,7 +241,7 @@ void World::formulate() {
   }
   const double hSub = settings_.dt / settings_.substeps;
   const double applyScale = settings_.algorithm == Algorithm::A5 ? settings_.kappa : 1.0;
-  constraints_.build(model_, manifolds_.manifolds(), ctx_.poses, ctx_.mass, settings_, hSub, applyScale);
+  constraints_.build(model_, solvedManifolds(), ctx_.poses, ctx_.mass, settings_, hSub, applyScale);
   // The approach speed restitution reflects: the contact's at the end of this step in free flight
   // (v + h g), nearer the speed of impact within the step than Box2D's at its start. A ball dropped
   // 1 m rebounds to 0.92 e² of its height under A1/A2 at h = 1/60 this way (0.85 with the start's),
@@ -181,7 +278,25 @@ const StepReport& World::step() {
   report_.problem.clear();
   if (diverged()) return report_;  // FCL's AABB tree crashes on such boxes
   auto t0 = Clock::now();
+  if (settings_.sleep && asleep_.empty()) {
+    asleep_.assign(model_.bodies.size(), 0);
+    sleepIsland_.assign(model_.bodies.size(), -1);
+    still_.assign(model_.bodies.size(), 0.0);
+  }
+  if (!settings_.sleep && !asleep_.empty()) {  // turned off: everyone awake
+    for (size_t i = 0; i < asleep_.size(); ++i) wake(static_cast<int>(i));
+    asleep_.clear();
+    allAsleep_ = false;
+  }
+  if (allAsleep_) {  // nothing moves and nothing can touch: the last step's manifolds stand
+    report_.times = StageTimes{};
+    report_.solver = StepStats{};
+    state_.time += settings_.dt;
+    state_.step += 1;
+    return report_;
+  }
   if (!geometry()) return report_;
+  if (!asleep_.empty()) wakeTouched();
   report_.times.s1 = since(t0);
 
   t0 = Clock::now();
@@ -196,7 +311,13 @@ const StepReport& World::step() {
   stepper_->stepCoordinates(ctx_);
   report_.times.s4 = since(t0);
 
-  constraints_.storeImpulses(manifolds_.manifolds());
+  if (asleep_.empty()) {
+    constraints_.storeImpulses(manifolds_.manifolds());
+  } else {
+    constraints_.storeImpulses(active_);
+    for (size_t k = 0; k < active_.size(); ++k) manifolds_.manifolds()[activeAt_[k]] = active_[k];
+    updateSleep();
+  }
   report_.solver = ctx_.stats;
   total_ += report_.times;
   state_.time += settings_.dt;
@@ -212,6 +333,7 @@ void World::applyImpulse(int body, const Vec3& impulse, const Vec3& worldPoint) 
   if (b.isStatic) throw std::invalid_argument("applyImpulse: body \"" + b.name + "\" is static");
   if (!allFinite(impulse) || !allFinite(worldPoint)) throw std::invalid_argument("applyImpulse: not finite");
   BodyState& s = state_.bodies[static_cast<size_t>(body)];
+  wake(body);
   s.v += b.invMass * impulse;
   s.w += b.invInertia.cwiseProduct(s.q.conjugate() * (worldPoint - s.x).cross(impulse));  // v̌: body frame
 }

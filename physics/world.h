@@ -56,7 +56,16 @@ struct StepReport {
   int manifolds = 0;
   int contactPoints = 0;
   int cachedPairs = 0;   // manifolds kept from the last step without a narrowphase query
+  int asleep = 0;        // dynamic bodies asleep after the step (settings.sleep)
 };
+
+// Sleeping (settings.sleep; Box2D's rule): a body is still while below these; an island (bodies
+// joined by touching contacts) whose bodies have all been still for kTimeToSleep stops stepping:
+// its velocities are zeroed and it takes no part in the narrowphase, the formulation or the solve
+// until a touching contact with an awake body, or a push, wakes it. Islands with joints stay awake.
+constexpr double kSleepLinear = 0.05;                  // [m/s]
+constexpr double kSleepAngular = 2 * 3.14159265358979 / 180;  // [rad/s]
+constexpr double kTimeToSleep = 0.5;                   // [s]
 
 class World {
  public:
@@ -86,7 +95,7 @@ class World {
   // Between steps: an impulse [N s] at a world point on a dynamic body (a user's push), or the
   // nearest body a ray meets (physics/collision/raycast.h). Throws std::invalid_argument for a
   // static body or a non-finite impulse.
-  void applyImpulse(int body, const Vec3& impulse, const Vec3& worldPoint);
+  void applyImpulse(int body, const Vec3& impulse, const Vec3& worldPoint);  // wakes the body's island
   RayHit raycast(const Vec3& origin, const Vec3& direction, double maxDistance, bool dynamicOnly = true) const;
 
   // Measures of the current state.
@@ -94,11 +103,17 @@ class World {
   double potentialEnergy() const;  // Σ -m g·x [J]
   double maxPenetration() const;   // deepest contact point of the last step, at the current coordinates [m]
   double maxJointError() const;    // largest joint separation at the current coordinates [m]
+  bool asleep(int body) const { return !asleep_.empty() && asleep_[static_cast<size_t>(body)] != 0; }
 
  private:
   bool diverged();                 // checks the state, fills report_.problem
   bool geometry();                 // s1; false when overloaded
   void formulate();                // s2
+  const std::vector<Manifold>& solvedManifolds();  // the manifolds s2 formulates
+  bool dormant(int body) const;    // static, or asleep
+  void wake(int body);             // its whole sleeping island
+  void wakeTouched();              // islands a touching contact with an awake body reaches
+  void updateSleep();              // after the step: still timers, islands that fall asleep
 
   const Model& model_;
   SolverSettings settings_;
@@ -114,6 +129,15 @@ class World {
   std::vector<Vec3> move_;     // per body: h v, its free-flight move this step without gravity [m]
   std::vector<Vec3> approachV_;  // per body: the velocity restitution measures approach speeds with
   std::vector<Frame> frames_;    // per body: its pose with a rotation matrix, for the manifold cache
+  // Sleeping (empty while settings.sleep is off): per body asleep, the island it fell asleep in
+  // (its smallest body index) and how long it has been still [s]; the manifolds the step solves
+  // (those with an awake body) and where each sits in manifolds_.
+  std::vector<char> asleep_;
+  std::vector<int> sleepIsland_;
+  std::vector<double> still_;
+  bool allAsleep_ = false;  // every dynamic body: the step has nothing to do
+  std::vector<Manifold> active_;
+  std::vector<size_t> activeAt_;
   StepReport report_;
   StageTimes total_;
 };

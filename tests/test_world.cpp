@@ -436,3 +436,79 @@ TEST(World, A1RefusesSplitImpulse) {
   off.set(&SolverSettings::splitImpulse, false);
   EXPECT_NO_THROW(w.setSettings(resolve(off)));
 }
+
+namespace {
+
+SolverSettings sleeping(const Scene& s, bool on) {
+  SolverOverrides o = s.solver;
+  o.set(&SolverSettings::sleep, on);
+  return resolve(o);
+}
+
+}  // namespace
+
+// Sleeping (World, settings.sleep): the 20-level pyramid under its own settings comes to rest,
+// every body falls asleep and then nothing moves; until the first body sleeps the run is the same,
+// bit for bit, as without sleeping; a push wakes the island, which settles and sleeps again.
+TEST(Sleep, ASettledPyramidSleepsAndAPushWakesIt) {
+  const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/pyramid.json");
+  World on(s.model, sleeping(s, true), s.initial), off(s.model, sleeping(s, false), s.initial);
+  const int n = s.model.dynamicCount();
+  int step = 0;
+  for (; step < 20 * 60 && on.lastReport().asleep < n; ++step) {
+    on.step();
+    off.step();
+    if (on.lastReport().asleep == 0)
+      for (size_t i = 0; i < on.state().bodies.size(); ++i) {
+        const BodyState &a = on.state().bodies[i], &b = off.state().bodies[i];
+        ASSERT_TRUE(a.x == b.x && a.q.coeffs() == b.q.coeffs() && a.v == b.v && a.w == b.w)
+            << "sleeping changed an awake step " << step << ", body " << i;
+      }
+  }
+  ASSERT_EQ(on.lastReport().asleep, n) << "not all asleep after " << step << " steps";
+  EXPECT_GT(step, 30);  // half a second still at least
+  EXPECT_EQ(on.kineticEnergy(), 0);
+  const State settled = on.state();
+  for (int k = 0; k < 120; ++k) on.step();
+  for (size_t i = 0; i < settled.bodies.size(); ++i) {
+    EXPECT_EQ(on.state().bodies[i].x, settled.bodies[i].x) << i;
+    EXPECT_TRUE(on.asleep(static_cast<int>(i)) || s.model.bodies[i].isStatic) << i;
+  }
+  EXPECT_EQ(on.lastReport().solver.rows, 0);  // a settled step formulates and solves nothing
+  // A push on the top box wakes its island (all of it: every box touches the next).
+  const int top = static_cast<int>(s.model.bodies.size()) - 1;
+  on.applyImpulse(top, Vec3(0.5, 0, 0), on.state().bodies[static_cast<size_t>(top)].x);
+  EXPECT_FALSE(on.asleep(top));
+  on.step();
+  EXPECT_EQ(on.lastReport().asleep, 0);
+  EXPECT_GT(on.lastReport().solver.rows, 0);
+  EXPECT_NE(on.state().bodies[static_cast<size_t>(top)].x, settled.bodies[static_cast<size_t>(top)].x);
+  for (int k = 0; k < 20 * 60 && on.lastReport().asleep < n; ++k) on.step();
+  EXPECT_EQ(on.lastReport().asleep, n) << "did not settle again";
+}
+
+// A body falling onto a sleeping one wakes it on touching; a chain (joints) never sleeps.
+TEST(Sleep, ATouchWakesAndJointsStayAwake) {
+  const Scene s = sceneFrom(R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [10, 0.5, 10]}, "position": [0, -0.5, 0]},
+      {"name": "low", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 0.5, 0]},
+      {"name": "high", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 12, 0]}]})");
+  World w(s.model, sleeping(s, true), s.initial);
+  int step = 0;
+  while (!w.asleep(1) && step < 120) w.step(), ++step;
+  ASSERT_TRUE(w.asleep(1)) << "the resting box did not fall asleep";
+  EXPECT_FALSE(w.asleep(2));  // still falling
+  const Vec3 rest = w.state().bodies[1].x;
+  while (w.asleep(1) && step < 300) w.step(), ++step;
+  EXPECT_FALSE(w.asleep(1)) << "the landing did not wake it";
+  EXPECT_GT(w.state().bodies[2].x.y(), 1.4);  // woken as it touched, not after it fell through
+  EXPECT_LT(w.state().bodies[2].x.y(), 1.6);
+  EXPECT_LT((w.state().bodies[1].x - rest).norm(), 1e-3);  // woken in the step it was hit, and solved in it
+  for (int k = 0; k < 600 && w.lastReport().asleep < 2; ++k) w.step();
+  EXPECT_EQ(w.lastReport().asleep, 2);
+
+  const Scene chain = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/pendulum_chain.json");
+  World c(chain.model, sleeping(chain, true), chain.initial);
+  for (int k = 0; k < 600; ++k) c.step();
+  EXPECT_EQ(c.lastReport().asleep, 0);
+}

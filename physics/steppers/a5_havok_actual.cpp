@@ -126,7 +126,7 @@ class HavokActualStepper final : public Stepper {
       if (j + 1 < n) {
         const Vec3 ext = dt * c.model->gravity;
         forEach(part.bodies, [&](size_t i) {
-          if (c.model->bodies[i].isStatic) return;
+          if (c.mass[i].invMass == 0) return;  // static, or asleep (World::updateSleep)
           const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
           c.v[i] = c.subV[static_cast<size_t>(j) * nb + i] + ext + sumV_[i];
           c.w[i] = w + gyroscopicChange(w, c.model->bodies[i].inertia, dt, st.gyroscopic) + sumW_[i];
