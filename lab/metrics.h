@@ -69,7 +69,7 @@ const char* metricLabel(const std::string& name);
 std::string formatMetric(const std::string& name, double value, int extraDigits = 0);
 // A length alone, the same way.
 std::string formatLength(double metres, int extraDigits = 0);
-// "max joint error 1.004 cm > 1.00 cm": the quantity against its bound, with the digits it takes
+// "max joint error 1.004 cm > 1.000 cm": the quantity against its bound, with the digits it takes
 // for two different figures not to print the same.
 std::string comparisonText(const std::string& metric, double value, const char* op, double bound);
 
