@@ -49,23 +49,29 @@ fs::path smallSpec(const fs::path& dir) {
 }
 
 // A chart as gnuplot drew it: a PNG of the size asked for with more than a few colours (not
-// blank), and its SVG beside it naming every series it should.
+// blank), and its SVG beside it naming every series it should. A Pareto chart grows below its
+// 600 px by the list of the points whose labels did not fit, and only then: which points those
+// are depends on the measured costs, so either size is right when it matches the list.
 void expectChart(const fs::path& png, const std::vector<std::string>& series) {
   SCOPED_TRACE(png.string());
   ASSERT_TRUE(fs::exists(png));
   const substep::render::Image img = substep::render::readPng(png.string());
-  EXPECT_EQ(img.width, 960);
-  EXPECT_EQ(img.height, 600);
-  std::set<uint32_t> colours;
-  for (size_t i = 0; i + 3 < img.rgba.size(); i += 4 * 97)
-    colours.insert(uint32_t(img.rgba[i]) << 16 | uint32_t(img.rgba[i + 1]) << 8 | img.rgba[i + 2]);
-  EXPECT_GT(colours.size(), 3u) << "the chart is blank";
   fs::path svgPath = png;
   svgPath.replace_extension(".svg");
   std::ifstream svg(svgPath);
   std::stringstream text;
   text << svg.rdbuf();
   EXPECT_NE(text.str().find("<svg"), std::string::npos);
+  const bool listed = text.str().find("Not labelled on the chart") != std::string::npos;
+  EXPECT_EQ(img.width, 960);
+  if (listed)
+    EXPECT_GT(img.height, 600);
+  else
+    EXPECT_EQ(img.height, 600);
+  std::set<uint32_t> colours;
+  for (size_t i = 0; i + 3 < img.rgba.size(); i += 4 * 97)
+    colours.insert(uint32_t(img.rgba[i]) << 16 | uint32_t(img.rgba[i + 1]) << 8 | img.rgba[i + 2]);
+  EXPECT_GT(colours.size(), 3u) << "the chart is blank";
   for (const std::string& s : series) EXPECT_NE(text.str().find(">" + s + "<"), std::string::npos) << s;
 }
 
