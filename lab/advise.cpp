@@ -103,7 +103,7 @@ std::string timeText(double t) {
 // Quantities that only grow during a run: a run can stop once one is beyond its bound.
 bool growsOnly(const std::string& metric) {
   return metric == "penetration" || metric == "joint_error" || metric == "joint_angle_error" || metric == "limit_excess" ||
-         metric == "displacement" || metric == "speed";
+         metric == "displacement" || metric == "sideways" || metric == "speed";
 }
 
 }  // namespace

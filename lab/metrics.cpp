@@ -39,6 +39,7 @@ std::optional<double> metricValue(const Metrics& m, const std::string& name) {
   if (name == "joint_angle_error") return m.joints ? std::optional<double>(m.jointAngleErrorMax) : std::nullopt;
   if (name == "limit_excess") return m.joints ? std::optional<double>(m.limitExcess.max()) : std::nullopt;
   if (name == "displacement") return m.displacementMax;
+  if (name == "sideways") return m.sidewaysMax;
   if (name == "jitter") return m.jitter;
   if (name == "speed") return m.speedMax;
   if (name == "energy_drift") return m.energyDrift;
@@ -65,6 +66,7 @@ const char* metricLabel(const std::string& name) {
   if (name == "joint_angle_error") return "max joint angle error";
   if (name == "limit_excess") return "max limit excess";
   if (name == "displacement") return "max displacement";
+  if (name == "sideways") return "max sideways displacement";
   if (name == "jitter") return "resting jitter";
   if (name == "speed") return "max speed";
   if (name == "energy_drift") return "energy drift";
@@ -125,6 +127,7 @@ Probe::Probe(const Scene& scene, double seconds, const PreparedReference* refere
   bool anyStatic = false;
   for (const Body& b : model_.bodies) anyStatic = anyStatic || b.isStatic;
   free_ = model_.gravity.norm() == 0 && !anyStatic;
+  if (model_.gravity.norm() > 0) down_ = model_.gravity.normalized();
   m_.energyStart = m_.energyEnd = mechanicalEnergy(model_, scene.initial);
   keMax_ = kineticEnergy(model_, scene.initial);
   momentum(model_, scene.initial, p0_, l0_);
@@ -196,6 +199,12 @@ void Probe::observe(const State& s, const ContactDepths& contacts, bool finite) 
     if (d > m_.displacementMax) {
       m_.displacementMax = d;
       m_.displacementBody = model_.bodies[static_cast<size_t>(i)].name;
+    }
+    const Vec3 moved = b.x - scene_.initial.bodies[static_cast<size_t>(i)].x;
+    const double across = (moved - moved.dot(down_) * down_).norm();
+    if (across > m_.sidewaysMax) {
+      m_.sidewaysMax = across;
+      m_.sidewaysBody = model_.bodies[static_cast<size_t>(i)].name;
     }
     if (d > tolerance && !m_.collapseTime) m_.collapseTime = t;
     if (t >= 0.5 * seconds_ - 1e-9) m_.jitter = std::max(m_.jitter, b.v.norm());

@@ -43,6 +43,8 @@ struct Metrics {
   double jitter = 0;                            // largest speed in the run's second half [m/s]
   double displacementMax = 0;                   // largest distance from the start [m]
   std::string displacementBody;
+  double sidewaysMax = 0;                       // ... across gravity: a stack's settling left out [m]
+  std::string sidewaysBody;
   std::optional<double> collapseTime;           // first time a resting body moved beyond the tolerance [s]
   std::string collapseRule;                     // "moved > 0.05 m", or the failure watch's rule
   double speedMax = 0;                          // fastest body [m/s]
@@ -110,6 +112,7 @@ class Probe final : public RunObserver {
   FailureWatch watch_;
   std::vector<int> rest_;
   bool conservative_ = false, free_ = false;
+  Vec3 down_ = -Vec3::UnitY();  // gravity's direction (unit); -y without gravity
   double keMax_ = 0;
   Vec3 p0_ = Vec3::Zero(), l0_ = Vec3::Zero();
   double penSum_ = 0;

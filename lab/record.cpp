@@ -45,6 +45,8 @@ json metricsJson(const Metrics& m) {
       {"jitter_mps", m.jitter},
       {"displacement_max_m", m.displacementMax},
       {"displacement_body", m.displacementBody},
+      {"sideways_max_m", m.sidewaysMax},
+      {"sideways_body", m.sidewaysBody},
       {"collapse_time_s", optional(m.collapseTime)},
       {"collapse_rule", m.collapseRule},
       {"speed_max_mps", m.speedMax},

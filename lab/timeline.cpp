@@ -78,6 +78,7 @@ void TimelineWatch::add(const Snapshot& s) {
     else if (name.rfind("joint", 0) == 0) body = jointBody;
     else if (name == "speed") body = fastest;
     else if (name == "displacement" && !m.displacementBody.empty()) body = model.bodyIndex(m.displacementBody);
+    else if (name == "sideways" && !m.sidewaysBody.empty()) body = model.bodyIndex(m.sidewaysBody);
     failed_[k] = TimelineMarker{"criterion", s.state.step, s.state.time, body, *value, c.text};
     --open_;
   }

@@ -953,7 +953,7 @@ std::string sourcePosition(const std::string& text, size_t pos) {
 const std::vector<std::string>& criterionMetrics() {
   static const std::vector<std::string> names = {
       "penetration", "penetration_end", "joint_error", "joint_angle_error", "limit_excess",   "displacement",
-      "jitter",      "speed",           "energy_drift", "momentum_drift",   "trajectory_error", "reference_error"};
+      "sideways",    "jitter",      "speed",           "energy_drift", "momentum_drift",   "trajectory_error", "reference_error"};
   return names;
 }
 

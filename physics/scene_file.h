@@ -41,6 +41,8 @@ struct CameraPreset {
 //   limit_excess [rad]                 largest angle beyond a hinge, swing or twist limit
 //   displacement [m]                   largest distance from the start of a resting body (all
 //                                      dynamic bodies when no "rest" list is given)
+//   sideways [m]                       ... of that distance, the largest across gravity (a
+//                                      stack's settling under its weight left out)
 //   jitter [m/s]                       largest speed of a resting body in the run's second half
 //   speed [m/s]                        largest speed of any body (ejection speed)
 //   energy_drift, momentum_drift       largest relative change (conservative / free scenes)

@@ -202,6 +202,17 @@ std::vector<SettingSpec> makeTable() {
        "The gyroscopic term ω × Iω (beyond the report, which has none): none, explicit, or implicit (one Newton "
        "step on the body-frame Euler equation)",
        &S::gyroscopic, same(0), {}},
+      {"contact_order", "", "contact-order", K::Choice, {0, 0}, {"split", "manifold"}, kIterative, O::Extension,
+       "order=%s", kNone,
+       "The order of contact rows in a sweep: split (every manifold's friction, then every normal row; normals "
+       "first when cold) or manifold (each manifold's normal rows, then its friction, as Box2D and Box3D)",
+       &S::contactOrder, {0, 0, 0, 0, 0, 1}, {}},
+      {"contact_frame", "", "contact-frame", K::Choice, {0, 0}, {"bodies", "world"}, kEvery, O::Extension,
+       "frame=%s", kNone,
+       "What a contact's normal and arms follow: bodies (formulated from each step's coordinates, as the report's "
+       "s2) or world (kept where the narrowphase found them until it runs again for the pair, the separation "
+       "following the bodies: Box3D's contact recycling)",
+       &S::contactFrame, {0, 0, 0, 0, 0, 1}, {}},
       {"contact_hertz", "", "contact-hertz", K::Real, {0.01, 1e4}, {}, {A::Soft}, O::Extension, "contact %s Hz",
        {A::Soft}, "soft: contact stiffness as a frequency [Hz] (at most a quarter of the sub-step rate)",
        &S::contactHertz, same(30), {}},

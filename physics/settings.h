@@ -65,6 +65,20 @@ enum class JacobianRefresh {
   Stable,      // the report's: only 'stable' rows', while micro-iterating, next-frame predicted
 };
 
+// The order in which an iterative solver sweeps the contact rows (the report leaves it open).
+enum class ContactOrder {
+  Split,     // every manifold's friction rows, then every normal row (cold: normals first): the
+             // normal impulses bounding friction exist when friction is solved
+  Manifold,  // each manifold's normal rows, then its friction rows: Box2D's and Box3D's order
+};
+
+// The frame a contact's rows are formulated in (docs/algorithms.md, "The soft step at scale").
+enum class ContactFrame {
+  Bodies,  // the normal and the arms follow the bodies: J̌ from the coordinates of each step (s2)
+  World,   // the normal and the arms stay where the narrowphase found them in the world until it
+           // runs again for the pair; the separation follows the bodies (Box3D's contact recycling)
+};
+
 // The settings a run uses, every one resolved (resolve()). A default-constructed one holds A2's
 // defaults from the schema. Each field is one row of the schema; ranges, defaults and help are
 // there, not here.
@@ -92,6 +106,8 @@ struct SolverSettings {
   bool islands;                   // A5: island by island (the same numbers as all at once)
   JacobianRefresh jacobians;      // A5 (IV.4.1)
   Gyroscopic gyroscopic;
+  ContactOrder contactOrder;      // how iterative solvers order contact rows
+  ContactFrame contactFrame;      // what the contact rows' normal and arms follow
   double contactHertz;            // soft: contact stiffness [Hz]
   double contactDamping;          // soft: damping ratio ζ
   double jointHertz;              // soft: joint stiffness [Hz]
@@ -115,7 +131,8 @@ const char* originName(SettingOrigin o);  // "report", "extension", "limit"
 // The setting's field in SolverSettings; none for a setting that only sets others (a preset).
 using SettingField = std::variant<std::monostate, Algorithm SolverSettings::*, int SolverSettings::*,
                                   double SolverSettings::*, bool SolverSettings::*,
-                                  JacobianRefresh SolverSettings::*, Gyroscopic SolverSettings::*>;
+                                  JacobianRefresh SolverSettings::*, Gyroscopic SolverSettings::*,
+                                  ContactOrder SolverSettings::*, ContactFrame SolverSettings::*>;
 
 // How the page shows a setting: among the main controls, and a slider's useful part of the range.
 struct SettingControl {

@@ -82,6 +82,10 @@ void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, doub
     p.localA = poseA.unrotate(c.pA - poseA.p);
     p.localB = poseB.unrotate(c.pB - poseB.p);
     p.localN = poseB.unrotate(c.n);
+    p.worldN = c.n;
+    const Vec3 mid = 0.5 * (c.pA + c.pB);
+    p.armA = mid - poseA.p;
+    p.armB = mid - poseB.p;
     p.depth = c.depth;
     int match = -1;
     double best = kMatchDistance * kMatchDistance;

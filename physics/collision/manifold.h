@@ -23,6 +23,11 @@ struct ManifoldPoint {
   Vec3 localA = Vec3::Zero();  // σ̌a: the point on A, in A's frame [m]
   Vec3 localB = Vec3::Zero();  // σ̌b: the point on B, in B's frame [m]
   Vec3 localN = Vec3::UnitY(); // the normal (from B to A) in B's frame
+  // Where the narrowphase found the point, in the world, kept while the manifold is reused: the
+  // normal, and the arms from each body's origin to the midpoint of the two surface points [m]
+  // (ContactFrame::World formulates from these).
+  Vec3 worldN = Vec3::UnitY();
+  Vec3 armA = Vec3::Zero(), armB = Vec3::Zero();
   double depth = 0;            // penetration when detected [m]
   double lambda = 0;           // its normal impulse of the last step [N s]
   int age = 0;                 // steps this point has persisted

@@ -93,6 +93,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   contactFirstRow = static_cast<int>(next);
   frictions.clear();
   frames_.assign(poses.begin(), poses.end());
+  const bool worldFrame = settings.contactFrame == ContactFrame::World;
   for (const Manifold& m : manifolds) {
     const Frame& A = frames_[static_cast<size_t>(m.a)];
     const Frame& B = frames_[static_cast<size_t>(m.b)];
@@ -102,7 +103,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     f.mu = m.friction;
     f.firstNormal = static_cast<int>(next);
     f.normalCount = m.count;
-    Vec3 normalSum = Vec3::Zero();
+    Vec3 normalSum = Vec3::Zero(), worldNormalSum = Vec3::Zero();
     const Share share(m.count);
     for (int k = 0; k < m.count; ++k) {
       const ManifoldPoint& p = m.points[k];
@@ -112,6 +113,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       c.localA = p.localA;
       c.localB = p.localB;
       c.localN = p.localN;
+      c.worldFrame = worldFrame;
+      c.worldN = p.worldN;
+      c.armA = p.armA;
+      c.armB = p.armB;
       c.row = static_cast<int>(next);
       c.restitution = m.restitution;
       contacts.push_back(c);
@@ -124,9 +129,14 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       if (r.bias < 0 && !speculative_) r.hi = r.lambda = 0;
       f.localA += share(p.localA);  // the centroids
       f.localB += share(p.localB);
+      f.armA += share(p.armA);
+      f.armB += share(p.armB);
       normalSum += p.localN;
+      worldNormalSum += p.worldN;
     }
     f.localN = normalSum.normalized();
+    f.worldFrame = worldFrame;
+    f.worldN = worldNormalSum.normalized();
     for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm());
     f.row = static_cast<int>(next);
     f.qB = poses[static_cast<size_t>(m.b)].q;
@@ -140,45 +150,42 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
     frictions.push_back(f);
   }
-  // Solve order: joints, then every contact's normal row, then the friction rows. With friction
-  // interleaved, Gauss-Seidel spends its sweeps on friction before the normal impulses that
-  // bound it exist: a 5-box stack under A2 at 10 iterations falls over; normals first hold it.
+  // Solve order: joints, then the contacts by contactOrder (unitOrder()). Split: every contact's
+  // normal row, then the friction rows; with friction interleaved, Gauss-Seidel spends its sweeps
+  // on friction before the normal impulses that bound it exist: a 5-box stack under A2 at 10
+  // iterations falls over; normals first hold it. Warm started, friction first: the normals then
+  // act last on the velocities the step keeps. Manifold: each manifold's normal rows, then its
+  // friction, as Box2D and Box3D solve them: under the soft step the 100-level pyramid's first
+  // second settles instead of rocking apart (docs/algorithms.md, "The soft step at scale").
   // With block solving, a manifold's normal rows are one contact block: Gauss-Seidel row by row
   // over four coplanar points overshoots in rotation, and with one sweep per sub-step a pyramid
   // rocks itself apart (docs/algorithms.md).
-  auto normalUnits = [&] {
-    for (FrictionDef& f : frictions) {
-      f.firstNormalUnit = static_cast<int>(units.size());
-      if (contactBlocks_ && f.normalCount > 1) {
-        f.unit = static_cast<int>(units.size());
-        units.push_back(SolveUnit{f.firstNormal, f.normalCount, SolveUnit::Contact, -1});
-      } else {
-        for (int k = 0; k < f.normalCount; ++k) units.push_back(SolveUnit{f.firstNormal + k, 1});
-      }
+  unitOrder_ = settings.contactOrder == ContactOrder::Manifold ? UnitOrder::Manifold
+               : settings.warmStart                            ? UnitOrder::FrictionFirst
+                                                               : UnitOrder::NormalsFirst;
+  auto normalUnits = [&](FrictionDef& f) {
+    f.firstNormalUnit = static_cast<int>(units.size());
+    if (contactBlocks_ && f.normalCount > 1) {
+      f.unit = static_cast<int>(units.size());
+      units.push_back(SolveUnit{f.firstNormal, f.normalCount, SolveUnit::Contact, -1});
+    } else {
+      for (int k = 0; k < f.normalCount; ++k) units.push_back(SolveUnit{f.firstNormal + k, 1});
     }
   };
-  auto frictionUnits = [&] {
-    for (FrictionDef& f : frictions) {
-      f.frictionUnit = static_cast<int>(units.size());
-      units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction, -1});
-    }
+  auto frictionUnit = [&](FrictionDef& f) {
+    f.frictionUnit = static_cast<int>(units.size());
+    units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction, -1});
   };
-  if (settings.warmStart) {
-    frictionUnits();
-    normalUnits();
-  } else {
-    normalUnits();
-    frictionUnits();
-  }
+  forEachContactUnit(frictions, unitOrder_, normalUnits, frictionUnit);
   finishAll(mass, applyScale);
   // The active set each contact block ended the last step with is where this step's starts.
   for (size_t k = 0; k < frictions.size(); ++k)
     if (frictions[k].unit >= 0)
       blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)].lastMask = manifolds[k].blockMask;
-  findIslands(settings.islands, settings.warmStart);
+  findIslands(settings.islands);
 }
 
-void ConstraintSet::findIslands(bool split, bool frictionFirst) {
+void ConstraintSet::findIslands(bool split) {
   // Only the bodies of manifolds and joints are read, never the rows, which would stream the
   // step's largest array through the cache once more.
   // Islands off: one island, the whole step (island() gives whole()).
@@ -261,18 +268,14 @@ void ConstraintSet::findIslands(bool split, bool frictionFirst) {
       for (int u = 0; u < ref.units; ++u) islandUnits_[static_cast<size_t>(nu++)] = ref.firstUnit + u;
       for (int r = 0; r < ref.count; ++r) islandRows_[static_cast<size_t>(nr++)] = ref.first + r;
     }
-    for (int pass = 0; pass < 2; ++pass) {
-      const bool frictionPass = (pass == 0) == frictionFirst;
-      for (int q = is.manifolds; q < next.manifolds; ++q) {
-        const FrictionDef& f = frictions[static_cast<size_t>(islandManifolds_[static_cast<size_t>(q)])];
-        if (frictionPass) {
-          islandUnits_[static_cast<size_t>(nu++)] = f.frictionUnit;
-          continue;
-        }
-        const int n = f.unit >= 0 ? 1 : f.normalCount;
-        for (int u = 0; u < n; ++u) islandUnits_[static_cast<size_t>(nu++)] = f.firstNormalUnit + u;
-      }
-    }
+    const IndexRange mine{islandManifolds_.data() + is.manifolds, 0, next.manifolds - is.manifolds};
+    forEachContactUnit(
+        frictions, mine, unitOrder_,
+        [&](const FrictionDef& f) {
+          const int n = f.unit >= 0 ? 1 : f.normalCount;
+          for (int u = 0; u < n; ++u) islandUnits_[static_cast<size_t>(nu++)] = f.firstNormalUnit + u;
+        },
+        [&](const FrictionDef& f) { islandUnits_[static_cast<size_t>(nu++)] = f.frictionUnit; });
     for (int q = is.manifolds; q < next.manifolds; ++q) {
       const FrictionDef& f = frictions[static_cast<size_t>(islandManifolds_[static_cast<size_t>(q)])];
       for (int r = f.firstNormal; r < f.row + 3; ++r) islandRows_[static_cast<size_t>(nr++)] = r;

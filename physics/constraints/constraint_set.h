@@ -107,7 +107,30 @@ class ConstraintSet {
   std::vector<int> jointLambdaFirst_;
   std::vector<Frame> frames_;  // the poses contacts are formulated at, as rotation matrices
 
-  void findIslands(bool split, bool frictionFirst);  // frictionFirst: the unit order build() chose
+  void findIslands(bool split);
+  // The order of the contact units: build() lays them out so, findIslands keeps it per island.
+  enum class UnitOrder { NormalsFirst, FrictionFirst, Manifold };
+  UnitOrder unitOrder_ = UnitOrder::NormalsFirst;
+  // normals(f) and friction(f) for the manifolds listed (all, or the indices in `which`) in `order`.
+  template <class Frictions, class Normals, class Friction>
+  static void forEachContactUnit(Frictions& fs, const IndexRange& which, UnitOrder order, Normals normals,
+                                 Friction friction) {
+    auto each = [&](auto f) { forEach(which, [&](size_t k) { f(fs[k]); }); };
+    switch (order) {
+      case UnitOrder::NormalsFirst: each(normals), each(friction); break;
+      case UnitOrder::FrictionFirst: each(friction), each(normals); break;
+      case UnitOrder::Manifold:
+        each([&](auto& f) {
+          normals(f);
+          friction(f);
+        });
+        break;
+    }
+  }
+  template <class Frictions, class Normals, class Friction>
+  static void forEachContactUnit(Frictions& fs, UnitOrder order, Normals normals, Friction friction) {
+    forEachContactUnit(fs, IndexRange{nullptr, 0, static_cast<int>(fs.size())}, order, normals, friction);
+  }
   struct Island {
     int units = 0, rows = 0, bodies = 0, joints = 0, manifolds = 0;  // where each of its lists starts
   };

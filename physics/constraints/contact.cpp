@@ -5,17 +5,20 @@
 namespace substep {
 
 double contactGap(const ContactDef& c, const Frame& A, const Frame& B) {
-  return (A.apply(c.localA) - B.apply(c.localB)).dot(B.rotate(c.localN));
+  return (A.apply(c.localA) - B.apply(c.localB)).dot(c.worldFrame ? c.worldN : B.rotate(c.localN));
 }
 
 void formulateContact(const ContactDef& c, const Frame& A, const Frame& B, double h, double slop, Row& row,
                       bool jacobianOnly) {
   const Vec3 pa = A.apply(c.localA), pb = B.apply(c.localB);
-  const Vec3 n = B.rotate(c.localN);
+  const Vec3 n = c.worldFrame ? c.worldN : B.rotate(c.localN);
   // Arms to the midpoint of pa and pb: the same J as arms to pa and pb, since the two differ
-  // along n and (ω × s n)·n = 0.
+  // along n and (ω × s n)·n = 0. In the world frame, the arms the narrowphase found.
   const Vec3 m = 0.5 * (pa + pb);
-  axisRow(row, c.a, c.b, A, B, m - A.p, m - B.p, n);
+  if (c.worldFrame)
+    axisRow(row, c.a, c.b, A, B, c.armA, c.armB, n);
+  else
+    axisRow(row, c.a, c.b, A, B, m - A.p, m - B.p, n);
   if (jacobianOnly) return;
   row.bias = -((pa - pb).dot(n) + slop) / h;
   row.lo = 0;
@@ -23,13 +26,14 @@ void formulateContact(const ContactDef& c, const Frame& A, const Frame& B, doubl
 }
 
 void formulateFriction(const FrictionDef& f, const Frame& A, const Frame& B, Row* rows, bool jacobianOnly) {
-  const Vec3 n = B.rotate(f.localN);
+  const Vec3 n = f.worldFrame ? f.worldN : B.rotate(f.localN);
   // Both bodies' impulses act at one point, so friction conserves angular momentum exactly.
   const Vec3 c = 0.5 * (A.apply(f.localA) + B.apply(f.localB));
+  const Vec3 armA = f.worldFrame ? f.armA : Vec3(c - A.p), armB = f.worldFrame ? f.armB : Vec3(c - B.p);
   Vec3 t1, t2;
   tangentBasis(n, t1, t2);
-  axisRow(rows[0], f.a, f.b, A, B, c - A.p, c - B.p, t1);
-  axisRow(rows[1], f.a, f.b, A, B, c - A.p, c - B.p, t2);
+  axisRow(rows[0], f.a, f.b, A, B, armA, armB, t1);
+  axisRow(rows[1], f.a, f.b, A, B, armA, armB, t2);
   angleRow(rows[2], f.a, f.b, A, B, n);
   for (int k = 0; k < 3; ++k) rows[k].velocityLevel = true;
   if (jacobianOnly) return;

@@ -27,6 +27,11 @@ struct ContactDef {
   Vec3 localA = Vec3::Zero();  // σ̌a [m]
   Vec3 localB = Vec3::Zero();  // σ̌b [m]
   Vec3 localN = Vec3::UnitY(); // n in B's frame
+  // ContactFrame::World: the normal and the arms as the narrowphase found them, in the world; the
+  // separation still comes from localA, localB at the current poses.
+  bool worldFrame = false;
+  Vec3 worldN = Vec3::UnitY();
+  Vec3 armA = Vec3::Zero(), armB = Vec3::Zero();  // [m]
   int row = 0;                 // its normal row
   double restitution = 0;      // e of the pair
   double approach = 0;         // J̌v̌ at the step's start, before ext: < 0 when closing [m/s]
@@ -37,6 +42,9 @@ struct FrictionDef {
   Vec3 localA = Vec3::Zero();  // the centroid of the manifold's points on A, in A's frame [m]
   Vec3 localB = Vec3::Zero();  // ... on B, in B's frame [m]
   Vec3 localN = Vec3::UnitY(); // n in B's frame
+  bool worldFrame = false;     // ContactDef's: the normal and the centroid's arms kept in the world
+  Vec3 worldN = Vec3::UnitY();
+  Vec3 armA = Vec3::Zero(), armB = Vec3::Zero();  // to the centroid [m]
   double mu = 0;               // friction coefficient
   double radius = 0;           // mean distance of the points from the centroid [m]
   int row = 0;                 // its three rows: t1, t2, twist
