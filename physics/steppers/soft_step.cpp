@@ -56,8 +56,11 @@ class SoftStepper final : public Stepper {
     c.stats.rows = static_cast<int>(cs.rows.size());
 
     // What each row is, and for contacts C⁰ and the softness.
+    soft_[kJointSoft] = joint;
+    soft_[kContactSoft] = contact;
+    soft_[kStaticSoft] = staticContact;
     kind_.assign(cs.rows.size(), Kind::Joint);
-    soft_.assign(cs.rows.size(), joint);
+    softOf_.assign(cs.rows.size(), kJointSoft);
     c0_.assign(cs.rows.size(), 0.0);
     for (size_t k = 0; k < cs.rows.size(); ++k) {
       const Row& r = cs.rows[k];
@@ -71,20 +74,17 @@ class SoftStepper final : public Stepper {
       c0_[k] = -cs.rows[k].bias * h;  // β = -C/h as s2 formulated it
       const bool onStatic = c.model->bodies[static_cast<size_t>(ct.a)].isStatic ||
                             c.model->bodies[static_cast<size_t>(ct.b)].isStatic;
-      soft_[k] = onStatic ? staticContact : contact;
+      softOf_[k] = onStatic ? kStaticSoft : kContactSoft;
     }
-    c_.assign(cs.rows.size(), 0.0);
     dpV_.assign(nb, Vec3::Zero());
     dpW_.assign(nb, Vec3::Zero());
     c.subPoses = c.poses;
-    const double pushOut = st.pushOut;
+    const Pass solve{true, h, st.pushOut}, relax{false, h, st.pushOut};
 
     for (int j = 0; j < n; ++j) {
       addExternal(c, h);
       startSubStepImpulses(c, j);
-      currentSeparations(cs);
-      prepare(cs, h, true, pushOut);
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = softSweep(c);
+      for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = softSweep(c, solve);
       // Coordinates to the sub-step's end with the solved (biased) velocities.
       for (size_t i = 0; i < nb; ++i) {
         if (c.model->bodies[i].isStatic) continue;
@@ -95,9 +95,7 @@ class SoftStepper final : public Stepper {
       }
       recordSubStep(c, j);
       if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Reformulation::JointRows, 1.0);
-      currentSeparations(cs);
-      prepare(cs, h, false, pushOut);
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep(c);
+      for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep(c, relax);
       endSubStepImpulses(c);
     }
     c.stats.iterations = 2 * n * m;
@@ -119,69 +117,73 @@ class SoftStepper final : public Stepper {
  private:
   enum class Kind : unsigned char { Contact, Friction, Target, Joint, Limit };
 
-  // C of every contact at the coordinates reached: C⁰ + J̌·(Σ h v̌ᵏ), J̌ held.
-  void currentSeparations(const ConstraintSet& cs) {
-    for (const ContactDef& ct : cs.contacts) {
-      const size_t k = static_cast<size_t>(ct.row);
-      c_[k] = c0_[k] + rowVelocity(cs.rows[k], dpV_.data(), dpW_.data());
-    }
-  }
+  struct Pass {
+    bool useBias;   // the solve (soft, with position feedback) or the relax (rigid, none)
+    double h;       // the sub-step [s]
+    double pushOut; // [m/s]
+  };
 
-  // Each row's update as Δλ = -(a J̌v̌ + b) - s_i λ for this pass: a = s_m m_eff, b = m_eff bias.
-  void prepare(const ConstraintSet& cs, double h, bool useBias, double pushOut) {
-    const size_t nr = cs.rows.size();
-    a_.resize(nr);
-    b_.resize(nr);
-    si_.resize(nr);
-    for (size_t k = 0; k < nr; ++k) {
-      const Row& r = cs.rows[k];
-      double bias = 0, massScale = 1, impulseScale = 0;  // rigid, no feedback: relax
-      switch (kind_[k]) {
-        case Kind::Friction: break;
-        case Kind::Target: bias = -r.bias; break;  // J̌v̌ = target speed
-        case Kind::Contact:
-        case Kind::Limit:
-        case Kind::Joint: {
-          const double C = kind_[k] == Kind::Contact ? c_[k] : -r.bias * h;
-          if (kind_[k] != Kind::Joint && C > 0) {
-            bias = C / h;  // speculative: close the gap in this sub-step and no further
-          } else if (useBias) {
-            const Softness& s = soft_[k];
-            bias = s.massScale * s.biasRate * C;
-            if (kind_[k] == Kind::Contact) bias = std::max(bias, -pushOut);
-            massScale = s.massScale;
-            impulseScale = s.impulseScale;
-          }
-          break;
+  // Row k's update Δλ = -(a J̌v̌ + b) - s_i λ in this pass: a = s_m m_eff, b = m_eff bias. A
+  // contact's C is C⁰ + J̌·(Σ h v̌ᵏ) at the coordinates reached, J̌ held; joints were
+  // re-formulated from them, so their C is -β h.
+  struct Update {
+    double a, b, si;
+  };
+  Update update(const Row& r, size_t k, const Pass& p) const {
+    double bias = 0, massScale = 1, impulseScale = 0;  // rigid, no feedback: relax
+    switch (kind_[k]) {
+      case Kind::Friction: break;
+      case Kind::Target: bias = -r.bias; break;  // J̌v̌ = target speed
+      case Kind::Contact:
+      case Kind::Limit:
+      case Kind::Joint: {
+        const double C = kind_[k] == Kind::Contact ? c0_[k] + rowVelocity(r, dpV_.data(), dpW_.data()) : -r.bias * p.h;
+        if (kind_[k] != Kind::Joint && C > 0) {
+          bias = C / p.h;  // speculative: close the gap in this sub-step and no further
+        } else if (p.useBias) {
+          const Softness& s = soft_[softOf_[k]];
+          bias = s.massScale * s.biasRate * C;
+          if (kind_[k] == Kind::Contact) bias = std::max(bias, -p.pushOut);
+          massScale = s.massScale;
+          impulseScale = s.impulseScale;
         }
+        break;
       }
-      a_[k] = massScale * r.effMass;
-      b_[k] = bias * r.effMass;
-      si_[k] = impulseScale;
     }
+    return {massScale * r.effMass, bias * r.effMass, impulseScale};
   }
 
-  double softSweep(StepContext& c) {
+  // One sweep, row by row (the soft step solves no blocks; a manifold's friction rows as one
+  // unit, their two bodies' velocities read once), each row's update computed as it is reached:
+  // one pass over the rows per sweep.
+  double softSweep(StepContext& c, const Pass& p) {
     ConstraintSet& cs = *c.constraints;
     Row* rows = cs.rows.data();
     Vec3* v = c.v.data();
     Vec3* w = c.w.data();
     double change = 0;
     for (const SolveUnit& u : cs.units) {
-      for (int q = 0; q < u.size; ++q) {  // the soft step solves row by row
+      if (u.kind == SolveUnit::Friction) {  // rigid in both passes: Δλ = -m_eff J̌v̌
+        const int ia = rows[u.first].a, ib = rows[u.first].b;
+        solveFrictionUnit(cs.couplings[static_cast<size_t>(u.block)], &rows[u.first], rows, v[ia], w[ia], v[ib], w[ib], 0, 1,
+                          change);
+        continue;
+      }
+      for (int q = 0; q < u.size; ++q) {
         const size_t k = static_cast<size_t>(u.first + q);
         Row& r = rows[k];
-        change = std::max(change,
-                          solveRow(r, rows, v, w, [&](double jv) { return -(a_[k] * jv + b_[k]) - si_[k] * r.lambda; }));
+        const Update d = update(r, k, p);
+        change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return -(d.a * jv + d.b) - d.si * r.lambda; }));
       }
     }
     return change;
   }
 
-  std::vector<double> a_, b_, si_;
+  static constexpr unsigned char kContactSoft = 0, kStaticSoft = 1, kJointSoft = 2;
+  Softness soft_[3];
   std::vector<Kind> kind_;
-  std::vector<Softness> soft_;
-  std::vector<double> c0_, c_;     // contacts: C at the step's start, and now [m]
+  std::vector<unsigned char> softOf_;  // which of soft_ a row takes
+  std::vector<double> c0_;         // contacts: C at the step's start [m]
   std::vector<Vec3> dpV_, dpW_;    // Σ h v̌ᵏ of the sub-steps so far (angular in the body frame)
 };
 

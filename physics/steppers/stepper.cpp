@@ -147,12 +147,6 @@ void solveContactBlock(BlockData& d, const Row* rows, const double* b, double* d
   for (int i = 0; i < k; ++i) delta[i] = 0;  // no set fits (round-off at a degenerate point): keep λ
 }
 
-// change = max(change, |Δλ| / m_eff), dividing only for a new maximum (a division per row was a
-// measurable part of a sweep; the result can differ from the plain form in its last bit).
-inline void noteChange(double& change, double dl, double effMass) {
-  if (effMass > 0 && std::abs(dl) > change * effMass) change = std::abs(dl) / effMass;
-}
-
 // The factors of a row's update Δλ = m_eff (cBias β - cVel J̌v̌) (SweepScales).
 inline double biasFactor(const Row& r, const SweepScales& k) {
   return r.velocityTarget ? k.biasTarget : (r.speculative && r.bias < 0 ? k.biasSpeculative : k.bias);
@@ -206,29 +200,8 @@ __attribute__((always_inline)) inline void solveUnit(ConstraintSet& cs, const So
   // read once and written once.
   const int ia = rows[u.first].a, ib = rows[u.first].b;
   Vec3 va = v[ia], wa = w[ia], vb = v[ib], wb = w[ib];
-  if (u.kind == SolveUnit::Friction) {  // three singles in a row, bounded by the same Σλn
-    Row* r = &rows[u.first];
-    const FrictionCoupling& g = cs.couplings[static_cast<size_t>(u.block)];
-    const double ln = normalImpulse(r[0], rows);
-    // J̌v̌ of all three at the unit's start; each row's Δλ then moves the later rows' by g.
-    double jv[3] = {rowVelocity(r[0], va, wa, vb, wb), rowVelocity(r[1], va, wa, vb, wb),
-                    rowVelocity(r[2], va, wa, vb, wb)};
-    double d[3];
-    for (int i = 0; i < 3; ++i) {
-      if (i == 1) jv[1] += g.g10 * d[0];
-      if (i == 2) jv[2] += g.g20 * d[0] + g.g21 * d[1];
-      // (Friction rows are never speculative: biasFactor is k.bias or k.biasTarget, as before.)
-      const double next = std::clamp(r[i].lambda + r[i].effMass * (biasFactor(r[i], k) * r[i].bias - velFactor(r[i], k) * jv[i]),
-                                     r[i].lo * ln, r[i].hi * ln);
-      d[i] = next - r[i].lambda;
-      r[i].lambda = next;
-      r[i].pushed = r[i].pushed || next > 0;
-    }
-    for (int i = 0; i < 3; ++i) {
-      if (d[i] == 0) continue;
-      applyImpulse(r[i], d[i], va, wa, vb, wb);
-      noteChange(change, d[i], r[i].effMass);
-    }
+  if (u.kind == SolveUnit::Friction) {  // friction rows are never speculative nor motors
+    solveFrictionUnit(cs.couplings[static_cast<size_t>(u.block)], &rows[u.first], rows, va, wa, vb, wb, k.bias, k.vel, change);
     v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
     return;
   }

@@ -147,6 +147,37 @@ inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment incr
   return r.effMass > 0 ? std::abs(dl) / r.effMass : 0;
 }
 
+// change = max(change, |Δλ| / m_eff), dividing only for a new maximum (a division per row was a
+// measurable part of a sweep; the result can differ from the plain form in its last bit).
+inline void noteChange(double& change, double dl, double effMass) {
+  if (effMass > 0 && std::abs(dl) > change * effMass) change = std::abs(dl) / effMass;
+}
+
+// A manifold's three friction rows (a Friction unit, r[0..2]) on the two bodies' velocities va..wb:
+// Δλ = m_eff (cBias β - cVel J̌v̌) each, bounded by the same Σλn of the manifold's normals. J̌v̌ of
+// all three is read at the unit's start; each row's Δλ then moves the later rows' by the coupling g
+// instead of a velocity update and a twelve-term dot product.
+__attribute__((always_inline)) inline void solveFrictionUnit(const FrictionCoupling& g, Row* r, const Row* rows, Vec3& va,
+                                                             Vec3& wa, Vec3& vb, Vec3& wb, double cBias, double cVel,
+                                                             double& change) {
+  const double ln = normalImpulse(r[0], rows);
+  double jv[3] = {rowVelocity(r[0], va, wa, vb, wb), rowVelocity(r[1], va, wa, vb, wb), rowVelocity(r[2], va, wa, vb, wb)};
+  double d[3];
+  for (int i = 0; i < 3; ++i) {
+    if (i == 1) jv[1] += g.g10 * d[0];
+    if (i == 2) jv[2] += g.g20 * d[0] + g.g21 * d[1];
+    const double next = std::clamp(r[i].lambda + r[i].effMass * (cBias * r[i].bias - cVel * jv[i]), r[i].lo * ln, r[i].hi * ln);
+    d[i] = next - r[i].lambda;
+    r[i].lambda = next;
+    r[i].pushed = r[i].pushed || next > 0;
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (d[i] == 0) continue;
+    applyImpulse(r[i], d[i], va, wa, vb, wb);
+    noteChange(change, d[i], r[i].effMass);
+  }
+}
+
 // One Gauss-Seidel sweep over all solve units. For each unit
 //   Δλ = m_eff (cBias β - cVel J̌ v̌),  λ <- proj(λ + Δλ),  v̌ += M̌⁻¹J̌ᵀ Δλ
 // Returns the largest velocity change of a row, |Δλ| / m_eff [m/s or rad/s]. The second form
