@@ -108,7 +108,7 @@ json metricsJson(const Scene& scene, const World& world, const RunSummary& sum, 
   j["scene"] = scene.file;
   j["algorithm"] = algorithmName(settings.algorithm);
   j["line"] = settingsLine(settings);
-  lab::addReproduction(j, scene, false, settingsJson(settings), planned, o.steps, hashes);
+  lab::addReproduction(j, scene, "substep", settingsJson(settings), planned, o.steps, hashes);
   j["time"] = world.state().time;
   j["finite"] = !o.stepFailed;
   if (o.end == RunOutcome::End::Diverged) j["stopped"] = o.message;
@@ -222,7 +222,7 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       if (opt->record) {
         checkWritable(*opt->record, "--record " + *opt->record);
         try {
-          recording.emplace(*opt->record, lab::recordingMeta(scene, {{"", settingsJson(settings), "", false}}, opt->every, planned));
+          recording.emplace(*opt->record, lab::recordingMeta(scene, {{"", settingsJson(settings), "", "substep"}}, opt->every, planned));
         } catch (const RecordingError& e) {
           throw UsageError(std::string("--record: ") + e.what());
         }

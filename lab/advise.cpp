@@ -87,7 +87,7 @@ double estimatedWork(const Method& m, const Scene& scene) {
     case Algorithm::A5: sweeps = 1.0 * s.substeps * s.iterations; break;
     case Algorithm::Soft: sweeps = 2.0 * s.substeps * s.iterations; break;
   }
-  if (m.isBullet()) sweeps = s.iterations;
+  if (m.isPeer()) sweeps = s.iterations;
   return (3 + sweeps) / s.dt;
 }
 

@@ -19,12 +19,13 @@ namespace {
 
 using json = nlohmann::json;
 
-const std::vector<std::string> kFamilies = {"a1", "a2", "a3", "a4", "a5", "soft", "bullet"};
+const std::vector<std::string> kFamilies = {"a1", "a2", "a3", "a4", "a5", "soft", "bullet", "ode", "mujoco"};
 
 const char* colour(const std::string& family) {
   static const std::map<std::string, const char*> c = {{"a1", "#1f77b4"}, {"a2", "#ff7f0e"}, {"a3", "#2ca02c"},
                                                         {"a4", "#d62728"}, {"a5", "#9467bd"}, {"soft", "#8c564b"},
-                                                        {"bullet", "#e377c2"}};
+                                                        {"bullet", "#e377c2"}, {"ode", "#17becf"},
+                                                        {"mujoco", "#bcbd22"}};
   const auto it = c.find(family);
   return it == c.end() ? "#7f7f7f" : it->second;
 }
