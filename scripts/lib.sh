@@ -3,7 +3,8 @@
 
 SUBSTEP_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
-# Every package the build, the tests, the benchmark and the demo use.
+# Every package the build, the tests, the benchmark and the demo use. The install tests: cpack's
+# Debian package needs dpkg-shlibdeps (dpkg-dev) and file.
 SUBSTEP_PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libfcl-dev libccd-dev libassimp-dev
@@ -11,6 +12,7 @@ SUBSTEP_PACKAGES=(
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libcpp-httplib-dev
   libdart-external-odelcpsolver-dev libbullet-dev libxxhash-dev
   ffmpeg gnuplot-nox parallel
+  dpkg-dev file
 )
 
 # The sanitizer and fuzz builds' compiler: clang 14 with libFuzzer and the sanitizer runtimes
