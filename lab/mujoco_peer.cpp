@@ -26,6 +26,9 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kBufferBudget = 1.0 * (1u << 30);  // [bytes]
 constexpr int kContactsPerGeom = 8;                  // nconmax: a box on a box touches at 4 points, 8 with its neighbours
 constexpr size_t kMaxListedPairs = 100000;           // excludes and explicit pairs the MJCF may list
+// MuJoCo 2.2.2 reads MJCF with tinyxml2, which refuses elements nested more than 100 deep: a body
+// sits inside <mujoco>, <worldbody> and its parents, and holds its geom, joint and inertial.
+constexpr int kMaxTreeDepth = 96;
 
 // MuJoCo ends the process on an error by default; here the error ends the run with its message.
 // Its warnings (counted in mjData::warning, which the engine reads) are not printed either: the
@@ -254,10 +257,27 @@ std::string modelUnsupported(const Model& model) {
 
 }  // namespace
 
+// The most bodies on one path from a top-level body down MuJoCo's tree.
+int treeDepth(const Tree& t) {
+  int deepest = 0;
+  std::vector<std::pair<int, int>> stack;  // (body, its depth)
+  for (int r : t.roots) stack.emplace_back(r, 1);
+  while (!stack.empty()) {
+    const auto [u, d] = stack.back();
+    stack.pop_back();
+    deepest = std::max(deepest, d);
+    for (int c : t.nodes[static_cast<size_t>(u)].children) stack.emplace_back(c, d + 1);
+  }
+  return deepest;
+}
+
 std::string mujocoUnsupported(const Model& model, const State& initial) {
   if (std::string why = modelUnsupported(model); !why.empty()) return why;
   const Tree t = buildTree(model);
   if (!t.why.empty()) return t.why;
+  if (const int depth = treeDepth(t); depth > kMaxTreeDepth)
+    return "its joints chain " + std::to_string(depth) + " bodies deep (MuJoCo 2.2.2 reads a scene as XML nested at most 100 "
+           "elements deep: " + std::to_string(kMaxTreeDepth) + " bodies)";
   if (std::string why = velocityMismatch(model, initial, t); !why.empty()) return why;
   const Sizes s = sizesOf(model, t);
   if (s.bytes() > kBufferBudget) {

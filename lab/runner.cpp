@@ -71,7 +71,15 @@ MethodEngine makeEngine(const Scene& scene, const RunResult& r) {
 // The first pass is observed (metrics, frames, state hashes, the stop callback); the later ones
 // time the same steps (`stepsDone` of the first) with nothing watching.
 Pass runPass(const Scene& scene, RunResult& r, const RunSetup& setup, Probe* probe) {
-  MethodEngine m = makeEngine(scene, r);
+  MethodEngine m;
+  try {
+    m = makeEngine(scene, r);
+  } catch (const std::exception& e) {  // a peer that will not take what peerUnsupported() let through
+    if (!r.method.isPeer()) throw;
+    r.refused = true;
+    r.stopped = "no " + peerDisplayName(r.method.peer) + " peer for this scene: " + e.what();
+    return Pass{};
+  }
   RunDriver run(m.engine(), probe ? r.steps : r.stepsDone);
   Frames frames(setup.frameRate, r.frames);
   StateHashes hashes(scene.model, r.steps);
