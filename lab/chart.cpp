@@ -444,6 +444,60 @@ bool convergenceChart(const std::string& scene, const std::vector<Point>& pts, c
   return true;
 }
 
+
+// The engine comparison of Erez, Tassa and Todorov (ICRA 2015): error against the real-time factor
+// (simulated seconds per wall-clock second), each method a curve over its time steps, the ends
+// labelled with their h. Made where some method ran at two time steps or more.
+bool speedChart(const std::string& scene, const std::vector<Point>& pts, const std::string& metric, Chart& c) {
+  std::map<std::string, std::vector<const Point*>> groups;
+  std::vector<std::string> order;
+  for (const Point& p : pts) {
+    if (p.diverged || !std::isfinite(p.error) || !(p.cost > 0)) continue;
+    const std::string sig = signature(*p.row, {"dt"});
+    if (!groups.count(sig)) order.push_back(sig);
+    groups[sig].push_back(&p);
+  }
+  bool curves = false;
+  for (const auto& [sig, g] : groups) curves = curves || g.size() >= 2;
+  if (!curves) return false;
+  const double floor = logFloor(pts);
+  std::ostringstream data, plot, labels;
+  std::map<std::string, int> sameFamily;
+  int index = 0;
+  bool zero = false;
+  for (const std::string& sig : order) {
+    std::vector<const Point*>& g = groups[sig];
+    std::sort(g.begin(), g.end(), [](const Point* a, const Point* b) { return a->dt > b->dt; });
+    for (const Point* p : g) {
+      const double e = p->error > 0 ? p->error : floor;
+      zero = zero || p->error == 0;
+      data << num(1000 / p->cost) << ' ' << num(e) << '\n';
+    }
+    data << "\n\n";
+    std::string text = g.front()->row->at("method").get<std::string>();
+    const size_t h = text.find(":h=");
+    if (h != std::string::npos) text.erase(h, text.find(':', h + 1) == std::string::npos ? std::string::npos : text.find(':', h + 1) - h);
+    // A family's second and later curves (mujoco with RK4 beside its Euler) dashed, other points.
+    const int kth = sameFamily[g.front()->family]++;
+    static const int kPoints[] = {7, 5, 9, 11, 13};
+    plot << (index ? ", \\\n     " : "plot ") << "'@DATA@' index " << index << " using 1:2 with linespoints pt " << kPoints[kth % 5]
+         << " ps 1.2 lw 2 dt " << (kth + 1) << " lc rgb '" << colour(g.front()->family) << "' title " << gpString(text);
+    for (const Point* p : {g.front(), g.back()}) {
+      labels << "set label " << gpString(p->row->at("h").get<std::string>()) << " at " << num(1000 / p->cost) << ", "
+             << num(p->error > 0 ? p->error : floor) << " offset 0.6, 0.6 font ',8' tc rgb '" << colour(p->family) << "'\n";
+      if (g.size() == 1) break;
+    }
+    c.notes.push_back(text + ": " + std::to_string(g.size()) + (g.size() == 1 ? " time step" : " time steps"));
+    ++index;
+  }
+  c.name = scene + "-speed";
+  c.title = scene + ": " + metricLabel(metric) + " against the real-time factor (each method over h; further right and lower is better)";
+  c.data = data.str();
+  c.script = header(c.title, "real-time factor (simulated s per wall-clock s, one core)", yLabel(metric)) +
+             "set logscale xy\nset key outside right top box opaque font ',9'\n" + labels.str() + (zero ? zeroNote(floor) : "") +
+             plot.str() + "\n";
+  return true;
+}
 }  // namespace
 
 std::vector<size_t> paretoFront(const std::vector<std::pair<double, double>>& points) {
@@ -512,6 +566,8 @@ std::vector<Chart> makeCharts(const std::vector<json>& rows, const ChartOptions&
     if (havokChart(scene, pts, metric, c)) charts.push_back(c);
     c = Chart{};
     if (convergenceChart(scene, pts, metric, c)) charts.push_back(c);
+    c = Chart{};
+    if (speedChart(scene, pts, metric, c)) charts.push_back(c);
   }
   return charts;
 }

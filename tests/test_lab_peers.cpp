@@ -1,5 +1,7 @@
 // The ODE and MuJoCo peers (lab/ode_peer.h, lab/mujoco_peer.h) against closed forms, beside
 // substep's own methods and Bullet where physics says they must agree, and what they refuse.
+#include "lab/chart.h"
+#include "lab/compare.h"
 #include "lab/method.h"
 #include "lab/metrics.h"
 #include "lab/peers.h"
@@ -11,6 +13,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 using namespace substep;
@@ -199,4 +203,61 @@ TEST(Peers, RunRefusesWhatAPeerCannotModelAndItsRecordReruns) {
     EXPECT_EQ(again.status, 0) << again.output;
     EXPECT_NE(again.output.find("same"), std::string::npos) << again.output;
   }
+}
+
+// The comparison's table: the front in (real-time factor, error), the curve with most runs on it
+// leading, refusals and divergences named. Rows as a sweep writes them, made up.
+TEST(Compare, WhoLeadsIsTheCurveWithMostRunsOnTheFront) {
+  auto row = [](const std::string& method, const std::string& family, const std::string& h, double dt, double msPerSecond,
+                double error) {
+    return nlohmann::json{{"scene", "s"}, {"method", method}, {"family", family}, {"h", h},
+                          {"settings", {{"dt", dt}, {"iterations", 10}}}, {"cost", {{"ms_per_second", msPerSecond}}},
+                          {"error", {{"metric", "trajectory_error"}}}, {"values", {{"trajectory_error", error}}},
+                          {"refused", false}, {"diverged", false}, {"finite", true}};
+  };
+  std::vector<nlohmann::json> rows = {
+      row("fast", "a5", "1/30", 1.0 / 30, 1, 0.5),   row("fast", "a5", "1/60", 1.0 / 60, 2, 0.2),
+      row("fast", "a5", "1/120", 1.0 / 120, 4, 0.1), row("exact", "mujoco", "1/30", 1.0 / 30, 10, 0.01),
+      row("exact", "mujoco", "1/60", 1.0 / 60, 20, 0.005), row("slow", "ode", "1/30", 1.0 / 30, 8, 0.4)};
+  rows.push_back(row("gone", "bullet", "1/30", 1.0 / 30, 1, 1));
+  rows.back()["diverged"] = true;
+  rows.push_back(row("never", "ode", "1/60", 1.0 / 60, 1, 1));
+  rows.back()["refused"] = true;
+  rows.back()["stopped"] = "no ODE peer for this scene: joint \"j\" is a cone_twist";
+  const std::vector<SceneComparison> c = compareRuns(rows);
+  ASSERT_EQ(c.size(), 1u);
+  ASSERT_EQ(c[0].front.size(), 5u);  // ode 1/30 is beaten by mujoco 1/30 on both
+  EXPECT_DOUBLE_EQ(c[0].front[0].speed, 1000);  // fastest first: 1000 / (1 ms a simulated second)
+  EXPECT_EQ(c[0].front.back().method, "exact");
+  EXPECT_EQ(c[0].leader, "fast");  // three runs on the front against two
+  EXPECT_EQ(c[0].mostAccurate.h, "1/60");
+  EXPECT_EQ(c[0].diverged, std::vector<std::string>{"gone h=1/30"});
+  const std::string t = comparisonTable(c);
+  EXPECT_NE(t.find("| s | trajectory error | fast | fast h=1/30 (50.0 cm, 1000x); "), std::string::npos) << t;
+  EXPECT_NE(t.find("- s, never: no ODE peer for this scene: joint \"j\" is a cone_twist"), std::string::npos) << t;
+
+  // The speed chart: a curve a method, its points by h, at x = the real-time factor.
+  const std::vector<Chart> charts = makeCharts(rows, ChartOptions{});
+  const auto speed = std::find_if(charts.begin(), charts.end(), [](const Chart& x) { return x.name == "s-speed"; });
+  ASSERT_NE(speed, charts.end());
+  EXPECT_NE(speed->data.find("1000 0.5\n500 0.2\n250 0.1\n\n\n"), std::string::npos) << speed->data;
+  EXPECT_NE(speed->script.find("title \"exact\""), std::string::npos) << speed->script;
+  EXPECT_EQ(speed->script.find("gone"), std::string::npos);  // diverged runs are not a curve
+}
+
+// `substep compare` end to end on one scene: the sweep's records, the speed chart (a PNG) and the
+// table, with what a peer refused named in it.
+TEST(Compare, CommandWritesRecordsChartsAndTable) {
+  const std::filesystem::path d = substep_test::emptyScratchFolder("compare");
+  const auto r = substep_test::runSubstep("compare --scenes compare/grasp_stack,compare/ragdoll_pile --methods a2:m=10,ode,mujoco "
+                                          "--dt 1/30,1/60 --repeat 1 --seconds 0.3 -q -o " + d.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output, "");
+  EXPECT_TRUE(std::filesystem::is_regular_file(d / "compare.jsonl"));
+  EXPECT_GT(std::filesystem::file_size(d / "grasp_stack-speed.png"), 10000u);
+  std::ifstream in(d / "table.md");
+  const std::string table((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(table.find("| grasp_stack | trajectory error | "), std::string::npos) << table;
+  EXPECT_NE(table.find("- ragdoll_pile, mujoco: no MuJoCo peer for this scene: joint \"ragdoll_0_spine\" is a cone_twist"),
+            std::string::npos) << table;
 }
