@@ -190,8 +190,10 @@ Run runCase(const Scene& scene, const Case& c, const SolverSettings& settings, i
   const RunOutcome& o = run.run();
   Run r;
   r.stepsDone = static_cast<int>(o.steps);
-  r.finite = o.end != RunOutcome::End::Diverged;
-  r.problem = o.message;
+  // A peer that gives up mid-run (MuJoCo's contact buffers full) is no time to compare: said as a
+  // divergence is, never a figure.
+  r.finite = o.end != RunOutcome::End::Diverged && o.end != RunOutcome::End::Refused;
+  r.problem = o.end == RunOutcome::End::Refused ? "refused: " + o.message : o.message;
   r.moved1s = times.moved1s;
   const double n = std::max(1, r.stepsDone);
   for (int k = 0; k < r.stepsDone; ++k) {
@@ -776,7 +778,7 @@ bool aggregate(std::vector<Result>& results) {
   }
   for (Result& r : results)
     for (const Result& b : results)
-      if (b.scene == r.scene && b.c->peer() == kBulletPeer && b.median.total > 0)
+      if (b.scene == r.scene && b.c->peer() == kBulletPeer && b.median.total > 0 && r.median.finite)
         r.ratio = r.median.total / b.median.total;
   return allFinite;
 }
@@ -807,7 +809,7 @@ void printWarnings(const std::vector<Result>& results, bool allFinite) {
       if (!r.repeatable) std::cout << "  " << r.scene << " " << r.c->label << "\n";
   }
   if (!allFinite) {
-    std::cout << "WARNING: some runs diverged (NaN@k: at step k):\n";
+    std::cout << "WARNING: some runs diverged or were refused (NaN@k: at step k):\n";
     for (const Result& r : results)
       if (!r.median.finite) std::cout << "  " << r.scene << " " << r.c->label << ": " << r.median.problem << "\n";
   }
