@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <stdexcept>
 
 namespace substep::lab {
 
@@ -115,8 +116,12 @@ std::string missedText(const std::string& metric, double value, double bound) { 
 
 }  // namespace
 
-FoundReference findConvergedReference(const Scene& scene, double seconds) {
+FoundReference findConvergedReference(const Scene& scene, double seconds, double budget) {
   const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  // Beyond a year: no deadline (and no overflow of the clock's range).
+  const auto deadline = budget < 3e7 ? start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(budget))
+                                     : std::chrono::steady_clock::time_point::max();
   FoundReference f;
   // A1 solves each step's contacts and joints exactly, so it converges fastest where it can run;
   // A3 re-formulates between sub-steps and is the one that converges on scenes A1 refuses.
@@ -125,12 +130,19 @@ FoundReference findConvergedReference(const Scene& scene, double seconds) {
     r.kind = SceneReference::Kind::Converged;
     r.method = method;
     try {
-      f.prepared = prepareReference(scene, r, seconds);
+      f.prepared.kind = r.kind;
+      f.prepared.converged = convergedReference(scene, r, seconds, kTrajectoryInterval, deadline);
       f.reference = r;
-      f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      f.seconds = elapsed();
       return f;
     } catch (const ReferenceError& e) {
       f.rejected.push_back(e.what());
+    } catch (const TimeBudgetSpent& e) {
+      std::string why = "the time budget (" + numberText(budget) + " s) ran out after " + numberText(std::round(10 * elapsed()) / 10) +
+                        " s computing a converged reference for " + scene.file + " over " + numberText(seconds) + " s: " + e.what();
+      for (const std::string& no : f.rejected) why += "\n  not converged before it: " + no;
+      throw TimeBudgetSpent(why + "\nGive a larger --budget, a shorter --seconds, or a target that needs no reference "
+                                  "(--max-penetration, --max-joint-error, --stand)");
     }
   }
   std::string why = "no converged reference for " + scene.file + " over " + numberText(seconds) + " s:";
@@ -140,17 +152,23 @@ FoundReference findConvergedReference(const Scene& scene, double seconds) {
 }
 
 Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<void(size_t, size_t, const Candidate&)>& progress) {
+  if (o.targets.empty()) throw std::invalid_argument("advise: no target (a quantity's bound, \"stand\" or \"criteria\")");
+  for (const Target& t : o.targets)
+    if (t.metric == "criteria" && !(scene.criteria && hasChecks(*scene.criteria)))
+      throw std::invalid_argument("advise: a \"criteria\" target on " + scene.file +
+                                  ", which states no criteria.pass (nor moving, stay_in, turns) to pass");
   std::vector<Method> candidates = o.candidates.empty() ? defaultCandidates() : o.candidates;
   std::vector<std::pair<double, size_t>> order;
   for (size_t i = 0; i < candidates.size(); ++i) order.emplace_back(estimatedWork(candidates[i], scene), i);
   std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
 
+  // The scene's own reference (a converged run costs) is part of the search's time.
+  const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
   std::optional<PreparedReference> reference = o.reference;
   if (!reference && scene.criteria && scene.criteria->reference) reference = prepareReference(scene, *scene.criteria->reference, o.seconds);
   Advice a;
   a.total = candidates.size();
-  const auto start = std::chrono::steady_clock::now();
-  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
   double cheapestPassWork = INFINITY;
   int passes = 0;
   // Beyond what the cheapest that met could lose to: its measured cost may be off from the
@@ -161,7 +179,7 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
   for (size_t k = 0; k < order.size(); ++k) {
     const auto& [work, index] = order[k];
     if (ruledOut(work)) break;
-    if ((o.maxRuns > 0 && static_cast<int>(a.tried.size()) >= o.maxRuns) || elapsed() >= o.timeBudget) {
+    if ((o.maxRuns > 0 && static_cast<int>(a.tried.size()) >= o.maxRuns) || o.budgetUsed + elapsed() >= o.timeBudget) {
       a.budgetSpent = true;
       for (size_t r = k; r < order.size() && !ruledOut(order[r].first); ++r) a.notRun.push_back(candidates[order[r].second]);
       break;

@@ -7,6 +7,7 @@
 
 #include "lab/runner.h"
 
+#include <cmath>
 #include <functional>
 #include <optional>
 #include <string>
@@ -33,6 +34,7 @@ struct AdviseOptions {
   std::vector<Method> candidates;  // empty: defaultCandidates()
   int repeat = 3;               // timed runs of a candidate that meets the targets
   double timeBudget = 60;       // [s] of wall time for the search; the candidate running then ends it
+  double budgetUsed = 0;        // [s] of timeBudget already spent before the search (finding a reference)
   int maxRuns = 0;              // candidates run at most; 0: no limit but the time
   std::optional<PreparedReference> reference;  // measured against this, not the scene's own
 };
@@ -40,14 +42,15 @@ struct AdviseOptions {
 // A converged reference for a scene that states none (`advise --max-error` on a user's first
 // scene): the first of A1 at h 1/480 and 1/960, then A3 (n 8, m 4) at h 1/480 and 1/960, whose
 // run at h/2 moves the trajectory by at most 1 % of the motion. Throws ReferenceError naming
-// each one tried and why it was not taken.
+// each one tried and why it was not taken, or TimeBudgetSpent once `budget` [s] of wall time
+// has gone, saying how far it got.
 struct FoundReference {
   SceneReference reference;
   PreparedReference prepared;
   double seconds = 0;                 // wall time spent finding it, the rejected ones included
   std::vector<std::string> rejected;  // why each one tried before it was not taken
 };
-FoundReference findConvergedReference(const Scene& scene, double seconds);
+FoundReference findConvergedReference(const Scene& scene, double seconds, double budget = INFINITY);
 
 // The default search: A1 at four h; A2 at 2 to 40 iterations, warm or cold; A3, A4 and A5 at
 // n 1 to 8, m 1 to 4, three h, Havok's three (kappa, tau) and the pyramid's (0.85, 0), warm or
@@ -76,7 +79,8 @@ struct Advice {
   double seconds = 0;            // wall time of the search
 };
 
-// `progress` is told each candidate tried (index, total candidates) when given.
+// `progress` is told each candidate tried (index, total candidates) when given. Throws
+// std::invalid_argument for no target, or a "criteria" target on a scene that states no checks.
 Advice advise(const Scene& scene, const AdviseOptions& options,
               const std::function<void(size_t, size_t, const Candidate&)>& progress = {});
 
