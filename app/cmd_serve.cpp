@@ -40,6 +40,9 @@ void addServeCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--timeline-mb", o->timelineMb,
                   "At most this many MB of kept steps per session, shared by its panels; the oldest go first (default 512)")
       ->check(CLI::Range(1, 65536));
+  cmd->add_flag("!--no-sleep", o->sleep,
+                "Keep every island awake (default: islands at rest for half a second sleep unless the scene or the page "
+                "sets sleep; the activity colours show them dark blue)");
   cmd->add_flag("!--fixed-size", o->adaptSize,
                 "Draw every frame at --size (default: a session whose drawing cannot keep --fps draws at 3/4, then 1/2 of it, "
                 "and says so in its stats, so the page stays interactive)");

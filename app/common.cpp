@@ -18,6 +18,9 @@
 #ifndef SUBSTEP_SOURCE_DIR
 #define SUBSTEP_SOURCE_DIR "."
 #endif
+#ifndef SUBSTEP_INSTALLED_ASSETS
+#define SUBSTEP_INSTALLED_ASSETS "../share/substep/assets"
+#endif
 
 namespace substep::app {
 
@@ -103,6 +106,13 @@ void addMaxBodies(CLI::App& cmd, SceneLimits& lim) {
 
 std::string assetsDir() {
   if (const char* env = std::getenv("SUBSTEP_ASSETS")) return env;
+  // An installed program: PREFIX/bin/substep beside PREFIX/share/substep/assets.
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = (exe.parent_path() / SUBSTEP_INSTALLED_ASSETS).lexically_normal();
+    if (fs::is_directory(installed / "scenes", ec)) return installed.string();
+  }
   return std::string(SUBSTEP_SOURCE_DIR) + "/assets";
 }
 

@@ -24,6 +24,7 @@ struct ServerOptions {
   double timelineSeconds = 60;   // [s] of steps kept per panel to scrub back to
   int timelineMb = 512;          // at most, per session (its panels share it)
   bool adaptSize = true;         // frames drawn smaller while the drawing cannot keep the fps (LiveConfig)
+  bool sleep = true;             // islands at rest sleep unless the scene or the page sets sleep
   int jpegQuality = 80;
   std::string webRoot;           // the page's files (default: the assets' web/)
   std::string scenesDir;         // scene files listed and loaded by name (default: the assets' scenes/)

@@ -7,11 +7,13 @@
 
 namespace substep::lab {
 
-// The commit of the source tree the program was built from, as git sees it now ("abc1234"), or
-// "unknown" without git.
+// The commit of the source tree the program was built from, as git sees it now ("abc1234");
+// without git or the source tree (an installed substep), the commit it was built from; "unknown"
+// when neither is known.
 std::string sourceCommit();
 // The commit and how many files under physics/ differ from it (the timings and trajectories
-// depend on them): "abc1234 + uncommitted changes in 2 file(s) under physics/".
+// depend on them): "abc1234 + uncommitted changes in 2 file(s) under physics/"; as built when
+// git cannot tell now.
 std::string sourceState();
 std::string cpuModel();     // /proc/cpuinfo's model name, "unknown CPU" elsewhere
 std::string loadAverage();  // /proc/loadavg's 1, 5 and 15 minute averages, "unknown" elsewhere

@@ -21,7 +21,7 @@ using json = nlohmann::json;
 constexpr size_t kMagicBytes = sizeof kRecordingMagic - 1;
 constexpr size_t kHeaderBytes = kMagicBytes + 4;                  // magic, version
 constexpr size_t kFooterBytes = 1 + 8 + 8 + kMagicBytes;          // tag, frames, checksum, end mark
-constexpr size_t kFrameFixedBytes = 1 + 4 + 8 + 8 + 4 * 4;        // tag, panel, step, time, four counts
+constexpr size_t kFrameFixedBytes = 1 + 4 + 8 + 8 + 5 * 4;        // tag, panel, step, time, five counts
 constexpr size_t kBodyBytes = 13 * 8;
 constexpr size_t kManifoldBytes = 4 * 4 + 4 * 4;
 constexpr size_t kContactBytes = 8 * 4;
@@ -203,10 +203,10 @@ class Parser {
     if (std::memcmp(p_, kRecordingMagic, m) != 0) fail(Problem::NotRecording, "not a recording (it does not start with SUBSTEPREC)");
     if (size_ < kHeaderBytes) fail(Problem::Truncated, "truncated at byte " + std::to_string(size_) + " (in the header)");
     pos_ = kMagicBytes;
-    const uint32_t version = u32();
-    if (version != kRecordingVersion)
-      fail(Problem::Version, "unknown version " + std::to_string(version) + " (this build reads version " +
-                                 std::to_string(kRecordingVersion) + ")");
+    version_ = u32();
+    if (version_ < kRecordingOldestVersion || version_ > kRecordingVersion)
+      fail(Problem::Version, "unknown version " + std::to_string(version_) + " (this build reads versions " +
+                                 std::to_string(kRecordingOldestVersion) + " to " + std::to_string(kRecordingVersion) + ")");
     // Sealed: it ends with the end mark, so the checksum before it is checked first, and a flipped
     // byte anywhere is reported as such rather than as whatever it happens to break.
     if (size_ >= kHeaderBytes + 4 + kFooterBytes &&
@@ -316,6 +316,16 @@ class Parser {
       j.linear = vec3f();
       j.angular = vec3f();
     }
+    if (version_ >= 2) {
+      const size_t asleep = count("asleep bodies", 4);
+      s.asleep.resize(asleep);
+      for (size_t k = 0; k < asleep; ++k) {
+        const uint32_t i = u32();
+        if (i >= bodies_ || (k > 0 && i <= static_cast<uint32_t>(s.asleep[k - 1])))
+          fail(Problem::Malformed, inFrame() + ": asleep body " + std::to_string(i) + " is not a body, or not in increasing order");
+        s.asleep[k] = static_cast<int32_t>(i);
+      }
+    }
     return panel;
   }
 
@@ -340,6 +350,7 @@ class Parser {
   std::string name_;
   bool sealed_ = false;
   size_t bodies_ = 0, joints_ = 0, panels_ = 0;
+  uint32_t version_ = kRecordingVersion;
   long long frame_ = 0;
 };
 
@@ -452,6 +463,9 @@ void RecordingWriter::add(int panel, const Snapshot& s) {
     if (m.a < 0 || m.b < 0 || static_cast<size_t>(m.a) >= bodies_ || static_cast<size_t>(m.b) >= bodies_ || m.first < 0 ||
         m.count < 0 || static_cast<size_t>(m.first) + static_cast<size_t>(m.count) > s.contacts.size())
       throw std::invalid_argument("recording: a manifold naming bodies or contacts the frame does not have");
+  for (size_t k = 0; k < s.asleep.size(); ++k)
+    if (s.asleep[k] < 0 || static_cast<size_t>(s.asleep[k]) >= bodies_ || (k > 0 && s.asleep[k] <= s.asleep[k - 1]))
+      throw std::invalid_argument("recording: asleep bodies not bodies of the frame, or not in increasing order");
   buf_.clear();
   buf_.reserve(kFrameFixedBytes + bodies_ * kBodyBytes + s.manifolds.size() * kManifoldBytes + s.contacts.size() * kContactBytes +
                joints_ * kJointBytes);
@@ -491,6 +505,8 @@ void RecordingWriter::add(int panel, const Snapshot& s) {
     putVec3f(buf_, j.linear);
     putVec3f(buf_, j.angular);
   }
+  putU32(buf_, static_cast<uint32_t>(s.asleep.size()));
+  for (const int32_t i : s.asleep) putU32(buf_, static_cast<uint32_t>(i));
   write(buf_);
   ++frames_;
 }

@@ -28,7 +28,8 @@ namespace substep {
 
 inline constexpr char kRecordingMagic[] = "SUBSTEPREC";   // the first 10 bytes (no NUL)
 inline constexpr char kRecordingEndMark[] = "SUBSTEPEND"; // the last 10 bytes
-inline constexpr uint32_t kRecordingVersion = 1;
+inline constexpr uint32_t kRecordingVersion = 2;    // what this build writes; it reads 1 and 2
+inline constexpr uint32_t kRecordingOldestVersion = 1;  // version 1 frames have no asleep list
 inline constexpr uint8_t kFrameTag = 'F';
 inline constexpr uint8_t kFooterTag = 'E';
 inline constexpr size_t kDefaultMaxRecordingBytes = size_t(2) << 30;  // what readRecording takes by default [bytes]

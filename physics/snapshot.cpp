@@ -82,6 +82,8 @@ Snapshot takeSnapshot(const World& world) {
     s.joints[static_cast<size_t>(r.joint)].linear = f32(lin);
     s.joints[static_cast<size_t>(r.joint)].angular = f32(ang);
   }
+  for (size_t i = 0; i < st.bodies.size(); ++i)
+    if (world.asleep(static_cast<int>(i))) s.asleep.push_back(static_cast<int32_t>(i));
   return s;
 }
 

@@ -50,6 +50,7 @@ struct Snapshot {
   std::vector<ManifoldSnap> manifolds;
   std::vector<ContactSnap> contacts;
   std::vector<JointSnap> joints;     // empty when the world has not stepped (t = 0)
+  std::vector<int32_t> asleep;       // bodies asleep after the step (SolverSettings::sleep), increasing
 
   double deepest() const;            // largest depth of a contact point [m], 0 when none
   double worstJointError() const;    // [m]

@@ -455,7 +455,8 @@ DrawList buildDrawList(const Model& model, const Snapshot& snap, const Camera& c
         case ColourMode::Speed: colour = rampColour(bs.v.norm() / view.speedScale); break;
         case ColourMode::Activity: {
           const bool rest = bs.v.norm() < view.restSpeed && bs.w.norm() < view.restSpeed;
-          colour = rest ? Vec3f(0.45f, 0.52f, 0.66f) : Vec3f(1.0f, 0.55f, 0.12f);
+          const bool asleep = std::binary_search(snap.asleep.begin(), snap.asleep.end(), static_cast<int32_t>(i));
+          colour = asleep ? Vec3f(0.22f, 0.25f, 0.42f) : rest ? Vec3f(0.45f, 0.52f, 0.66f) : Vec3f(1.0f, 0.55f, 0.12f);
           break;
         }
         case ColourMode::Error: colour = rampColour(0.5 + 0.5 * std::min(1.0, errors[i] / view.errorScale)); break;
@@ -535,7 +536,10 @@ DrawList buildDrawList(const Model& model, const Snapshot& snap, const Camera& c
     std::string legend;
     switch (mode) {
       case ColourMode::Speed: legend = fmt("colour: speed, blue 0 to red %g m/s", view.speedScale); break;
-      case ColourMode::Activity: legend = fmt("colour: orange moving, blue-grey at rest (< %g m/s)", view.restSpeed); break;
+      case ColourMode::Activity:
+        legend = fmt("colour: orange moving, blue-grey at rest (< %g m/s)", view.restSpeed) +
+                 (snap.asleep.empty() ? "" : ", dark blue asleep");
+        break;
       case ColourMode::Error: legend = fmt("colour: constraint error, green 0 to red %g mm", view.errorScale * 1e3); break;
       default: break;
     }

@@ -22,7 +22,8 @@ enum class ColourMode {
   Body,      // a distinct colour per body
   Group,     // one colour per Body::group (bodies without a group: per body)
   Speed,     // |v|: blue (0) to red (ViewOptions::speedScale and above)
-  Activity,  // resting (|v| and |ω| below ViewOptions::restSpeed) grey-blue, moving orange
+  Activity,  // resting (|v| and |ω| below ViewOptions::restSpeed) grey-blue, moving orange,
+             // asleep (Snapshot::asleep, SolverSettings::sleep) dark blue
   Error,     // the body's worst contact penetration or joint separation: green (0) to red (errorScale)
 };
 std::optional<ColourMode> parseColourMode(const std::string& s);  // "auto", "body", "group", "speed", "activity" ("sleep"), "error"

@@ -3,7 +3,9 @@
 
 SUBSTEP_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
-# Every package the build, the tests, the benchmark and the demo use.
+# Every package the build, the tests, the benchmark and the demo use. The install tests: cpack's
+# Debian package needs dpkg-shlibdeps (dpkg-dev) and file; the sweep tests compare records with jq
+# and run a single-node Slurm cluster (slurm-wlm: slurmctld, slurmd, the client; munge).
 SUBSTEP_PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libfcl-dev libccd-dev libassimp-dev
@@ -11,6 +13,7 @@ SUBSTEP_PACKAGES=(
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libcpp-httplib-dev
   libdart-external-odelcpsolver-dev libbullet-dev libxxhash-dev
   ffmpeg gnuplot-nox parallel
+  dpkg-dev file jq slurm-wlm munge
 )
 
 # The sanitizer and fuzz builds' compiler: clang 14 with libFuzzer and the sanitizer runtimes

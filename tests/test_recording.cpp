@@ -44,8 +44,8 @@ struct Recorded {
   std::vector<Snapshot> truth;
 };
 
-Recorded recordRun(const Scene& sc, long long steps, long long every, const fs::path& file) {
-  const SolverSettings settings = resolve(sc.solver);
+Recorded recordRun(const Scene& sc, long long steps, long long every, const fs::path& file, const SolverOverrides& extra = {}) {
+  const SolverSettings settings = resolve(sc.solver.merged(extra));
   World world(sc.model, settings, sc.initial);
   WorldEngine engine(world);
   RunDriver run(engine, steps);
@@ -97,6 +97,7 @@ void expectSameFrames(const Snapshot& got, const Snapshot& want, size_t k) {
     const JointSnap &a = got.joints[i], &b = want.joints[i];
     EXPECT_TRUE(a.error == b.error && a.linear == b.linear && a.angular == b.angular) << "frame " << k << ", joint " << i;
   }
+  EXPECT_EQ(got.asleep, want.asleep) << "frame " << k;
 }
 
 fs::path scratch() { return substep_test::emptyScratchFolder("recording"); }
@@ -179,6 +180,48 @@ TEST(Recording, RagdollRunReadsBackBitForBit) {
   EXPECT_GT(impulse, 0.f);  // joint impulses were compared, not zeros
 }
 
+// Version 2 frames end with the bodies asleep after the step: a run with sleeping keeps them, and a
+// version 1 file (the same frames without that list) still reads, with none asleep.
+TEST(Recording, SleepingBodiesAreKeptAndVersionOneStillReads) {
+  const fs::path dir = scratch();
+  SolverOverrides sleep;
+  sleep.set(&SolverSettings::sleep, true);
+  const Recorded r = recordRun(scene("stack"), 150, 1, dir / "sleep.rec", sleep);
+  ASSERT_EQ(r.rec.panels[0].size(), r.truth.size());
+  for (size_t k = 0; k < r.truth.size(); ++k) expectSameFrames(r.rec.panels[0][k], r.truth[k], k);
+  ASSERT_EQ(r.truth.back().asleep.size(), 5u) << "the stack's five boxes sleep by 2.5 s";
+  EXPECT_TRUE(r.truth.front().asleep.empty());
+
+  // The same recording written as version 1: without the asleep lists.
+  const Recorded awake = recordRun(scene("stack"), 12, 1, dir / "awake.rec");
+  std::string b = readBytes(dir / "awake.rec"), v1 = b.substr(0, 10);
+  v1 += std::string("\x01\0\0\0", 4);
+  uint32_t metaBytes = 0;
+  for (int i = 0; i < 4; ++i) metaBytes |= static_cast<uint32_t>(static_cast<unsigned char>(b[14 + static_cast<size_t>(i)])) << (8 * i);
+  size_t at = 14;
+  v1 += b.substr(at, 4 + metaBytes);
+  at += 4 + metaBytes;
+  auto u32at = [&](size_t p) {
+    uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= static_cast<uint32_t>(static_cast<unsigned char>(b[p + static_cast<size_t>(i)])) << (8 * i);
+    return v;
+  };
+  while (b[at] == 'F') {
+    size_t end = at + 1 + 4 + 8 + 8;
+    end += 4 + 104 * size_t(u32at(end));
+    end += 4 + 32 * size_t(u32at(end));
+    end += 4 + 32 * size_t(u32at(end));
+    end += 4 + 28 * size_t(u32at(end));
+    ASSERT_EQ(u32at(end), 0u);  // nothing asleep: the list is its count alone
+    v1 += b.substr(at, end - at);
+    at = end + 4;
+  }
+  v1 += b.substr(at);
+  const Recording old = parseRecording(reseal(v1), "old.rec");
+  ASSERT_EQ(old.panels[0].size(), awake.truth.size());
+  for (size_t k = 0; k < awake.truth.size(); ++k) expectSameFrames(old.panels[0][k], awake.truth[k], k);
+}
+
 TEST(Recording, EveryKeepsEveryKthStepAndTheLast) {
   const fs::path dir = scratch();
   const Recorded r = recordRun(scene("stack"), 23, 5, dir / "every.rec");
@@ -234,7 +277,7 @@ TEST(Recording, WrongMagicAndUnknownVersionAreNamed) {
   putU32(b, 10, 99);
   const auto [p, msg] = refusal(b);
   EXPECT_EQ(p, RecordingError::Problem::Version);
-  EXPECT_EQ(msg, "x.rec: unknown version 99 (this build reads version 1)");
+  EXPECT_EQ(msg, "x.rec: unknown version 99 (this build reads versions 1 to 2)");
   b = s.bytes + "junk";
   EXPECT_NE(refusal(b).second.find("4 bytes after the end"), std::string::npos);
 }

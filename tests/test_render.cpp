@@ -264,6 +264,15 @@ TEST(SceneBuilder, ColoursTellBodiesApartAndShowQuantities) {
   const DrawList act = buildDrawList(s.model, takeSnapshot(s.model, moving), defaultCamera(s), v, {});
   EXPECT_FALSE(act.solids[static_cast<size_t>(top)].colour.isApprox(act.solids[static_cast<size_t>(top) - 1].colour));
   EXPECT_TRUE(act.solids[1].colour.isApprox(act.solids[2].colour));  // both at rest
+  // Asleep (the snapshot's list): a third colour, named in the legend.
+  Snapshot sleeping = takeSnapshot(s.model, moving);
+  sleeping.asleep = {2};
+  const DrawList asleep = buildDrawList(s.model, sleeping, defaultCamera(s), v, {});
+  EXPECT_FALSE(asleep.solids[2].colour.isApprox(asleep.solids[1].colour));
+  EXPECT_FALSE(asleep.solids[2].colour.isApprox(asleep.solids[static_cast<size_t>(top)].colour));
+  bool named = false;
+  for (const auto& line : asleep.footer) named = named || line.text.find("asleep") != std::string::npos;
+  EXPECT_TRUE(named);
 
   // Error: sink the top box 5 cm into the one below; a step finds the contact, and its snapshot
   // measures what is left of the overlap at the step's end.

@@ -483,6 +483,7 @@ TEST(Server, SettingsPanelsAndSceneChange) {
   EXPECT_EQ(set["kappa"], 0.9);
   EXPECT_EQ(set["warm_start"], false);
   EXPECT_EQ(set["tau"], 0);  // the scene's, kept
+  EXPECT_EQ(set["sleep"], true);  // serve's default: islands at rest sleep
   EXPECT_NEAR(a.body["time"].get<double>(), 2.0 / 60, 1e-9);  // changed while it runs: goes on from its state
   a = post(*c, s + "/settings", {{"method", "a2:m=20:omega=1.3"}});
   ASSERT_EQ(a.status, 200) << a.text;
@@ -525,6 +526,27 @@ TEST(Server, SettingsPanelsAndSceneChange) {
   a = post(*c, s + "/scene", {{"scene", "stack"}, {"methods", "a5:n=4"}});
   EXPECT_EQ(a.body["panels"].size(), 1u);
   EXPECT_EQ(a.body["panels"][0]["settings"]["algorithm"], "a5");
+}
+
+// Sleeping is serve's default unless the scene or the page says otherwise; --no-sleep keeps every
+// island awake. A settled stack's bodies come out asleep in the state (the page colours them).
+TEST(Server, SleepIsServesDefaultAndNoSleepTurnsItOff) {
+  for (const bool on : {true, false}) {
+    std::vector<std::string> args = small();
+    if (!on) args.push_back("--no-sleep");
+    ServerProcess srv(args);
+    auto c = srv.client();
+    const std::string id = create(*c, {{"scene", "stack"}});
+    const std::string s = "/api/sessions/" + id;
+    Answer a = post(*c, s + "/step", {{"count", 120}});
+    ASSERT_EQ(a.status, 200) << a.text;
+    a = call(*c, "GET", s);
+    ASSERT_EQ(a.status, 200) << a.text;
+    EXPECT_EQ(a.body["panels"][0]["settings"]["sleep"], on) << a.text;
+    a = post(*c, s + "/settings", {{"settings", {{"sleep", !on}}}});  // the page's choice wins
+    ASSERT_EQ(a.status, 200) << a.text;
+    EXPECT_EQ(a.body["panels"][0]["settings"]["sleep"], !on);
+  }
 }
 
 TEST(Server, CameraAndView) {

@@ -44,7 +44,7 @@ double percentile(std::vector<double> v, double q) {
 
 // Median of the scene's scrubs [ms]; prints the line.
 double benchScene(const Options& o, const std::string& name, int width, int height) {
-  auto scene = std::make_shared<const Scene>(loadScene(std::string(SUBSTEP_SOURCE_DIR) + "/assets/scenes/" + name + ".json"));
+  auto scene = std::make_shared<const Scene>(loadScene(assetsDir() + "/scenes/" + name + ".json"));
   LiveConfig c;
   c.width = width;
   c.height = height;

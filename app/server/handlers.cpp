@@ -127,7 +127,7 @@ void Handlers::create(const Request& req, Response& res) {
   look.camera = chooseCamera(*s->scene, {});
   look.stepCost = true;
   s->timeline = std::make_shared<SessionTimeline>();
-  sessions_.open(s, setups(*s->scene, s->panels), look, c, play ? std::optional<double>(speed) : std::nullopt);
+  sessions_.open(s, setups(*s->scene, s->panels, o_.sleep), look, c, play ? std::optional<double>(speed) : std::nullopt);
   sendJson(res, stateJson(*s), 201);
 }
 
@@ -158,7 +158,7 @@ void Handlers::settings(WebSession& s, const Request& req) {
     if (f.has("settings")) changeSettings(u, f.at("settings"));
   }
   if (!f.has("method") && !f.has("settings")) throw HttpError(400, "method, settings: give a method or settings to change");
-  const std::vector<PanelSetup> ps = setups(*s.scene, next);  // every panel checked before any changes
+  const std::vector<PanelSetup> ps = setups(*s.scene, next, o_.sleep);  // every panel checked before any changes
   try {
     s.live->change([&](RenderSession& r, Look&) {
       for (int i : targets) r.setSettings(i, ps[static_cast<size_t>(i)].settings);
@@ -174,7 +174,7 @@ void Handlers::panels(WebSession& s, const Request& req) {
   if (!f.has("methods")) throw HttpError(400, "methods: expected 1 to 4 methods, e.g. \"a2:m=4,a5:n=4\"");
   std::lock_guard<std::mutex> lk(s.m);
   std::vector<WebSession::PanelState> next = panelsOf(f.at("methods"), "methods");
-  const std::vector<PanelSetup> ps = setups(*s.scene, next);
+  const std::vector<PanelSetup> ps = setups(*s.scene, next, o_.sleep);
   restart(s, "methods: ", [&](RenderSession& r, Look&) { r.setPanels(ps); });
   s.panels = std::move(next);
 }
@@ -187,7 +187,7 @@ void Handlers::scene(WebSession& s, const Request& req) {
   // Without methods, as many panels, each with the new scene's own settings.
   std::vector<WebSession::PanelState> next =
       f.has("methods") ? panelsOf(f.at("methods"), "methods") : std::vector<WebSession::PanelState>(s.panels.size());
-  const std::vector<PanelSetup> ps = setups(*sc, next);
+  const std::vector<PanelSetup> ps = setups(*sc, next, o_.sleep);
   restart(s, "", [&](RenderSession& r, Look& look) {
     r.setScene(sc, ps);
     look.camera = chooseCamera(*sc, {});

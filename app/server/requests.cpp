@@ -74,11 +74,14 @@ std::string sceneName(const Fields& f) {
   return f.text("scene", 200);
 }
 
-std::vector<PanelSetup> setups(const Scene& scene, const std::vector<WebSession::PanelState>& panels) {
+std::vector<PanelSetup> setups(const Scene& scene, const std::vector<WebSession::PanelState>& panels, bool sleepByDefault) {
+  const SettingSpec& sleep = settingOf(&SolverSettings::sleep);
   std::vector<PanelSetup> r;
   for (size_t i = 0; i < panels.size(); ++i) {
+    SolverOverrides given = panels[i].user;
+    if (sleepByDefault && !scene.solver.has(sleep) && !given.has(sleep)) given.set(sleep, 1);
     try {
-      r.push_back({resolveSettings(scene, panels[i].user), panels.size() > 1 ? panels[i].user.specText() : ""});
+      r.push_back({resolveSettings(scene, given), panels.size() > 1 ? panels[i].user.specText() : ""});
     } catch (const UsageError& e) {
       throw HttpError(400, (panels.size() > 1 ? "panel " + std::to_string(i) + ": " : std::string()) + e.what());
     }

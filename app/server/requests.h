@@ -31,7 +31,9 @@ std::vector<int> panelTargets(const Fields& f, int count);
 // "scene": a scene's name (required).
 std::string sceneName(const Fields& f);
 // The panels' settings over the scene's, each resolved (and so checked) as the command line is.
-std::vector<PanelSetup> setups(const Scene& scene, const std::vector<WebSession::PanelState>& panels);
+// Each panel's settings: the scene's under the panel's. With sleepByDefault (serve's default,
+// `--no-sleep` turns it off) islands at rest sleep unless the scene or the panel says otherwise.
+std::vector<PanelSetup> setups(const Scene& scene, const std::vector<WebSession::PanelState>& panels, bool sleepByDefault);
 // A settings object ({"n": 8, "warm": false, "kappa": null}) applied to `u` through the settings
 // table; a new algorithm starts from its own defaults.
 void changeSettings(SolverOverrides& u, const json& settings);
