@@ -32,7 +32,7 @@ struct AdviseOptions {
   std::vector<Target> targets;
   double seconds = 5;           // the run's length (a "stand" target sets it)
   std::vector<Method> candidates;  // empty: defaultCandidates()
-  int repeat = 3;               // timed runs of a candidate that meets the targets
+  int repeat = 3;               // timed runs of each of the two cheapest that met (their cost is the median)
   double timeBudget = 60;       // [s] of wall time for the search; the candidate running then ends it
   double budgetUsed = 0;        // [s] of timeBudget already spent before the search (finding a reference)
   int maxRuns = 0;              // candidates run at most; 0: no limit but the time
@@ -58,6 +58,41 @@ FoundReference findConvergedReference(const Scene& scene, double seconds, double
 std::vector<Method> defaultCandidates();
 // Work per simulated second, the order the search runs candidates in.
 double estimatedWork(const Method& m, const Scene& scene);
+
+// The order the search runs candidates in. A ladder is one method's candidates that differ only
+// in h, n and m, cheapest first: up a ladder, error mostly falls as work rises. Each ladder is
+// climbed by doubling (rungs 0, 1, 3, 7, ..., the top) until a rung meets the targets, then
+// bisected between the highest rung that missed and the lowest that met. The probe of least
+// estimated work over all ladders goes first, while it is within kReach times the work of the
+// cheapest candidate not yet given; else that candidate. So the whole space is still searched,
+// cheapest first but for the probes ahead of it, which find an answer early where most ladders
+// miss (the 100-level pyramid, where only the soft step stands) without running the costly tops
+// of ladders that meet anyway (the 40-level pyramid); once one meets, the work it rules out is
+// not run.
+class SearchOrder {
+ public:
+  SearchOrder(const std::vector<Method>& candidates, const std::vector<double>& work);
+  static constexpr double kReach = 4;
+  // The next candidate (an index into `candidates`), skipping what `ruledOut` rules out by its
+  // work; nullopt when none is left.
+  std::optional<size_t> next(const std::function<bool(double)>& ruledOut);
+  void report(size_t candidate, bool met);  // what a given candidate did
+  // Not given yet and not ruled out, cheapest first.
+  std::vector<size_t> left(const std::function<bool(double)>& ruledOut) const;
+
+ private:
+  struct Ladder {
+    std::vector<size_t> rungs;  // candidates, cheapest first
+    int highestMissed = -1;     // the highest rung that missed, below the lowest that met
+    int lowestMet = -1;
+    std::optional<size_t> probe() const;  // the rung to run next, if the ladder asks for one
+  };
+  std::vector<double> work_;
+  std::vector<bool> given_;
+  std::vector<size_t> ladderOf_;
+  std::vector<size_t> byWork_;
+  std::vector<Ladder> ladders_;
+};
 
 struct Candidate {
   Method method;

@@ -737,6 +737,59 @@ TEST(Advice, TimeSpentBeforeTheSearchCountsAgainstTheBudget) {
   EXPECT_FALSE(a.budgetSpent);
 }
 
+// The search climbs each method's ladder (its candidates that differ in h, n and m, cheapest first)
+// at rungs 0, 1, 3, 7, ... and bisects once one meets; so where every other method misses, the one
+// that meets high on its ladder is found after a few probes of each, not after every cheaper
+// candidate (taken in order of work, the 20 ladders that miss would be run to their 13th rung
+// first: the first that meets would be the 273rd run). And nothing is lost: every candidate is
+// given once.
+TEST(Advice, LaddersAreClimbedAndEveryCandidateIsGiven) {
+  std::vector<Method> candidates;
+  std::vector<double> work;
+  for (int l = 0; l <= 20; ++l)  // ladder 20 is the soft step; it meets from its 12th rung
+    for (int rung = 0; rung < 16; ++rung) {
+      const std::string n = "n=" + std::to_string(1 + rung);
+      candidates.push_back(parseMethods(l == 20 ? "soft:" + n : "a5:" + n + ":kappa=" + std::to_string(0.25 * (1 + l)) + ":tau=0")[0]);
+      work.push_back(1 + rung + 0.01 * l);
+    }
+  auto meets = [&](size_t c) { return c >= 20 * 16 + 12; };
+  SearchOrder order(candidates, work);
+  const auto never = [](double) { return false; };
+  std::vector<size_t> given;
+  std::optional<size_t> firstMet;
+  while (const std::optional<size_t> c = order.next(never)) {
+    given.push_back(*c);
+    if (meets(*c) && !firstMet) firstMet = given.size();
+    order.report(*c, meets(*c));
+  }
+  // The soft ladder's probes: rungs 0, 1, 3, 7, the top (15), then bisection: 11, 13, 12; the
+  // rungs between come from the cheapest-first fill (rung 2 before the top: the top's work, 16,
+  // is more than kReach = 4 times the cheapest left until every rung 0 to 3 has run).
+  std::vector<size_t> soft;
+  for (size_t c : given)
+    if (c >= 20 * 16) soft.push_back(c - 20 * 16);
+  EXPECT_EQ(std::vector<size_t>(soft.begin(), soft.begin() + 8), (std::vector<size_t>{0, 1, 3, 7, 2, 15, 11, 13}));
+  ASSERT_TRUE(firstMet);
+  EXPECT_LE(*firstMet, 130u);  // in order of work: the 273rd
+  // Every candidate once.
+  std::vector<size_t> sorted = given;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(sorted.size(), candidates.size());
+  EXPECT_EQ(std::adjacent_find(sorted.begin(), sorted.end()), sorted.end());
+  // What the work rules out is not given, and is what left() reports.
+  SearchOrder cut(candidates, work);
+  const auto cheap = [](double w) { return w > 2.5; };
+  size_t n = 0;
+  while (const std::optional<size_t> c = cut.next(cheap)) {
+    EXPECT_LE(work[*c], 3);
+    cut.report(*c, false);
+    ++n;
+  }
+  EXPECT_EQ(n, 21u * 2);
+  EXPECT_TRUE(cut.left(cheap).empty());
+  EXPECT_EQ(SearchOrder(candidates, work).left(cheap).size(), 21u * 2);
+}
+
 // The Bullet peer's state is ours: the same poses and velocities, angular velocity in the body
 // frame.
 TEST(BulletPeer, StateRoundTripAndPenetration) {
