@@ -74,20 +74,36 @@ std::string valueText(const lab::Candidate& c, const std::vector<lab::Target>& t
   return t;
 }
 
-// How far under the first target the candidate stays: 38 % for 0.62 cm against 1 cm.
-double margin(const lab::Candidate& c, const lab::Target& t) {
-  if (t.metric == "stand") return NAN;
-  if (t.metric == "criteria") return 1 - c.value;  // the check nearest its bound
-  return 1 - c.value / t.bound;
+// How far the candidate is from the first target's bound, as a share of it: 38 % under for
+// 0.62 cm against at most 1 cm. For the scene's criteria, that of the check its figure shows:
+// under an at-most bound, above an at-least one, none for a yes-or-no check (a body stays in its
+// box); none for standing.
+struct Margin {
+  double share = NAN;
+  std::string text;  // "38 % under the target", "26 % above its bound"; empty for none
+};
+
+Margin margin(const lab::Candidate& c, const lab::Target& t, const Scene& scene) {
+  Margin m;
+  const char* side = "under";
+  if (t.metric == "stand") return m;
+  if (t.metric == "criteria") {
+    const lab::Verdict v = lab::judge(scene, c.run);
+    if (v.decisive < 0) return m;
+    const lab::Check& k = v.checks[static_cast<size_t>(v.decisive)];
+    m.share = lab::checkMargin(k);
+    if (k.kind == lab::Check::Kind::AtLeast) side = "above";
+  } else {
+    m.share = 1 - c.value / t.bound;
+  }
+  if (!std::isfinite(m.share)) return Margin{};
+  std::ostringstream text;
+  text << std::fixed << std::setprecision(0) << 100 * m.share << " % " << side << (t.metric == "criteria" ? " its bound" : " the target");
+  m.text = text.str();
+  return m;
 }
 
 // --- the plan: targets and candidates checked before the first run ----------------------------
-
-// Whether the scene says what its error is (criteria: an error, a pass bound or a reference);
-// else --max-error is the trajectory's distance from a converged reference advise computes.
-bool statesError(const Scene& scene) {
-  return scene.criteria && (!scene.criteria->error.empty() || !scene.criteria->pass.empty() || scene.criteria->reference);
-}
 
 std::vector<lab::Target> adviseTargets(const AdviseCmdOptions& o, const Scene& scene) {
   std::vector<lab::Target> targets;
@@ -100,13 +116,13 @@ std::vector<lab::Target> adviseTargets(const AdviseCmdOptions& o, const Scene& s
       throw UsageError(std::string(flag) + ": " + e.what());
     }
   };
-  add(o.maxError, statesError(scene) ? lab::errorMetric(scene) : "trajectory_error", "--max-error");
+  // A scene that states no error measure: the trajectory against a converged reference.
+  add(o.maxError, lab::statedErrorMetric(scene).value_or("trajectory_error"), "--max-error");
   add(o.maxPenetration, "penetration", "--max-penetration");
   add(o.maxJointError, "joint_error", "--max-joint-error");
   add(o.stand, "stand", "--stand");
   // A scene that states its own checks is advised on them when no other target is given.
-  const bool hasChecks = scene.criteria && (!scene.criteria->pass.empty() || scene.criteria->moving || scene.criteria->stayIn ||
-                                            scene.criteria->turns);
+  const bool hasChecks = scene.criteria && lab::hasChecks(*scene.criteria);
   if (o.criteria && !hasChecks) throw UsageError("--criteria: " + scene.file + " states no criteria.pass (nor moving, stay_in, turns) to pass");
   if (o.criteria || (targets.empty() && hasChecks)) targets.insert(targets.begin(), lab::Target{"criteria", 0});
   if (targets.empty())
@@ -135,13 +151,6 @@ lab::AdviseOptions adviseOptions(const AdviseCmdOptions& o, const Scene& scene, 
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--budget: ") + e.what());
   }
-  if (o.maxError && !statesError(scene)) try {
-      if (!o.quiet && !o.json) std::cerr << "substep advise: " << scene.file << " states no reference; computing a converged one\n";
-      found = lab::findConvergedReference(scene, ao.seconds);
-      ao.reference = found->prepared;
-    } catch (const lab::ReferenceError& e) {
-      throw UsageError(std::string("--max-error: ") + e.what());
-    }
   if (!o.methods.empty()) try {
       ao.candidates = lab::parseMethods(o.methods);
     } catch (const std::invalid_argument& e) {
@@ -151,6 +160,16 @@ lab::AdviseOptions adviseOptions(const AdviseCmdOptions& o, const Scene& scene, 
       lab::methodSettings(m, scene);
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--methods: ") + m.text + ": " + e.what());
+    }
+  // Last, once the input is known good: it takes seconds, and they count against the budget
+  // (lab::TimeBudgetSpent, exit 1, when they are all of it).
+  if (o.maxError && !lab::statedErrorMetric(scene)) try {
+      if (!o.quiet && !o.json) std::cerr << "substep advise: " << scene.file << " states no reference; computing a converged one\n";
+      found = lab::findConvergedReference(scene, ao.seconds, ao.timeBudget);
+      ao.reference = found->prepared;
+      ao.budgetUsed = found->seconds;
+    } catch (const lab::ReferenceError& e) {
+      throw UsageError(std::string("--max-error: ") + e.what());
     }
   return ao;
 }
@@ -199,7 +218,7 @@ std::string searchedText(const lab::Advice& a) {
   for (const lab::Candidate& c : a.tried) stoppedEarly += !c.run.stoppedEarly.empty();
   std::ostringstream t;
   t << a.searched << " of " << a.total << " settings in " << std::fixed << std::setprecision(1) << a.seconds
-    << " s, cheapest first; " << stoppedEarly << " runs stopped when they missed";
+    << " s, climbing each method's h, n and m from its cheapest; " << stoppedEarly << " runs stopped when they missed";
   return t.str();
 }
 
@@ -226,13 +245,14 @@ std::string notRunText(const lab::Advice& a, const lab::AdviseOptions& ao) {
 
 json candidateJson(const lab::Candidate* c, const AdviseCmdOptions& o, const Scene& scene, const lab::AdviseOptions& ao) {
   if (!c) return nullptr;
-  const double m = margin(*c, ao.targets.front());
+  const Margin m = margin(*c, ao.targets.front(), scene);
   return {{"method", c->method.text},
           {"ms_per_step", c->run.cost.msPerStep},
           {"ms_per_second", c->run.msPerSecond()},
           {"dt", c->run.settings.dt},
           {"value", std::isfinite(c->value) ? json(c->value) : json(nullptr)},
-          {"margin", std::isfinite(m) ? json(m) : json(nullptr)},
+          {"margin", m.text.empty() ? json(nullptr) : json(m.share)},
+          {"margin_text", m.text.empty() ? json(nullptr) : json(m.text)},
           {"missed", c->missed.empty() ? json(nullptr) : json(c->missed)},
           {"run", runLine(o.scene, scene, c->method, c->run.settings, ao.seconds)}};
 }
@@ -260,8 +280,10 @@ int printAdviceJson(const lab::Advice& a, const AdviseCmdOptions& o, const Scene
 
 void printNoneMet(const lab::Advice& a, const lab::AdviseOptions& ao, const Scene& scene) {
   const lab::Candidate* closest = tried(a, a.closest);
-  std::cout << "nothing   " << (a.budgetSpent ? "run within the budget" : "in the searched space") << " meets "
-            << ao.targets.front().text(&scene);
+  // "meets max joint error <= 1.00 cm", "passes the scene's criteria: ..."
+  const lab::Target& t = ao.targets.front();
+  std::cout << "nothing   " << (a.budgetSpent ? "run within the budget" : "in the searched space") << (t.metric == "criteria" ? " " : " meets ")
+            << t.text(&scene);
   if (closest) std::cout << "; the closest was " << closest->method.text << " (" << closest->missed << ")";
   std::cout << "\n";
 }
@@ -269,7 +291,8 @@ void printNoneMet(const lab::Advice& a, const lab::AdviseOptions& ao, const Scen
 void printBest(const lab::Candidate& best, const lab::Candidate* second, const std::vector<lab::Target>& targets, const Scene& scene) {
   std::cout << std::fixed << std::setprecision(0);
   std::cout << "best      " << best.method.text << "\n          " << costText(best.run) << "; " << valueText(best, targets, scene);
-  if (std::isfinite(margin(best, targets.front()))) std::cout << " (" << 100 * margin(best, targets.front()) << " % under the target)";
+  const Margin m = margin(best, targets.front(), scene);
+  if (!m.text.empty()) std::cout << " (" << m.text << ")";
   std::cout << "\n";
   if (second) {
     std::cout << "runner-up " << second->method.text << "\n          " << costText(second->run) << " (" << std::setprecision(2)
@@ -309,9 +332,10 @@ void addAdviseCommand(CLI::App& app, std::function<int()>& action) {
   auto opt = std::make_shared<AdviseCmdOptions>();
   CLI::App* cmd = app.add_subcommand("advise", "Find the cheapest solver settings that meet an accuracy target on a scene");
   cmd->footer(
-      "\nSearches algorithm, n, m, h, kappa, tau and warm starting (or the grid of --methods), cheapest first by estimated\n"
-      "work, within --budget of wall time; each run stops when it misses; the ones that meet the target are timed\n"
-      "(median of --repeat) and ranked by cost per simulated second. Quantities take units: 1cm, 5mm, 2deg, 2%, 60s. Exit status 1 when nothing meets it.");
+      "\nSearches algorithm, n, m, h, kappa, tau and warm starting (or the grid of --methods) within --budget of wall time:\n"
+      "each method's h, n and m climbed from its cheapest by doubling, then bisected, the cheapest probe of all first, then\n"
+      "the rest cheapest first by estimated work; each run stops when it misses; those that meet the target are ranked by\n"
+      "cost per simulated second, the two cheapest timed again (median of --repeat). Quantities take units: 1cm, 5mm, 2deg, 2%, 60s. Exit status 1 when nothing meets it.");
   cmd->add_option("scene", opt->scene, "Scene file (JSON)")->required();
   cmd->add_option("--max-error", opt->maxError, "At most this error: the scene's error measure (its criteria), else the trajectory's "
                                                  "distance from a converged reference computed first (A1, else A3, at a small h), e.g. 1cm");
@@ -324,7 +348,7 @@ void addAdviseCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--seconds", opt->seconds, "Simulated time of each run [s] (default: the scene's criteria, else 5)")
       ->check(finiteIn(1e-3, 3600));
   cmd->add_option("--methods", opt->methods, "The candidates, as method specs with value lists (default: the built-in search)");
-  cmd->add_option("--repeat", opt->repeat, "Timed runs of a candidate that meets the target (default 3)")->check(CLI::Range(1, 100));
+  cmd->add_option("--repeat", opt->repeat, "Timed runs of each of the two cheapest that meet the target (default 3)")->check(CLI::Range(1, 100));
   cmd->add_option("--budget", opt->budget,
                   "Wall time for the search, e.g. 60s or 5min (default 60s); the run going on then finishes, and what was not "
                   "run is listed");

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <stdexcept>
 
 namespace substep::lab {
 
@@ -115,8 +116,12 @@ std::string missedText(const std::string& metric, double value, double bound) { 
 
 }  // namespace
 
-FoundReference findConvergedReference(const Scene& scene, double seconds) {
+FoundReference findConvergedReference(const Scene& scene, double seconds, double budget) {
   const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  // Beyond a year: no deadline (and no overflow of the clock's range).
+  const auto deadline = budget < 3e7 ? start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(budget))
+                                     : std::chrono::steady_clock::time_point::max();
   FoundReference f;
   // A1 solves each step's contacts and joints exactly, so it converges fastest where it can run;
   // A3 re-formulates between sub-steps and is the one that converges on scenes A1 refuses.
@@ -125,12 +130,19 @@ FoundReference findConvergedReference(const Scene& scene, double seconds) {
     r.kind = SceneReference::Kind::Converged;
     r.method = method;
     try {
-      f.prepared = prepareReference(scene, r, seconds);
+      f.prepared.kind = r.kind;
+      f.prepared.converged = convergedReference(scene, r, seconds, kTrajectoryInterval, deadline);
       f.reference = r;
-      f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      f.seconds = elapsed();
       return f;
     } catch (const ReferenceError& e) {
       f.rejected.push_back(e.what());
+    } catch (const TimeBudgetSpent& e) {
+      std::string why = "the time budget (" + numberText(budget) + " s) ran out after " + numberText(std::round(10 * elapsed()) / 10) +
+                        " s computing a converged reference for " + scene.file + " over " + numberText(seconds) + " s: " + e.what();
+      for (const std::string& no : f.rejected) why += "\n  not converged before it: " + no;
+      throw TimeBudgetSpent(why + "\nGive a larger --budget, a shorter --seconds, or a target that needs no reference "
+                                  "(--max-penetration, --max-joint-error, --stand)");
     }
   }
   std::string why = "no converged reference for " + scene.file + " over " + numberText(seconds) + " s:";
@@ -139,18 +151,113 @@ FoundReference findConvergedReference(const Scene& scene, double seconds) {
                               "(--max-penetration, --max-joint-error, --stand)");
 }
 
-Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<void(size_t, size_t, const Candidate&)>& progress) {
-  std::vector<Method> candidates = o.candidates.empty() ? defaultCandidates() : o.candidates;
-  std::vector<std::pair<double, size_t>> order;
-  for (size_t i = 0; i < candidates.size(); ++i) order.emplace_back(estimatedWork(candidates[i], scene), i);
-  std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+namespace {
 
+// The ladder a candidate stands on: its spec without h, n and m (and Bullet's it), the settings
+// along which error falls as work rises ("a5:kappa=1:tau=0.6:warm=off").
+std::string ladderOf(const Method& m) {
+  std::string key;
+  size_t from = 0;
+  for (size_t to = 0; to <= m.text.size(); ++to) {
+    if (to < m.text.size() && m.text[to] != ':') continue;
+    const std::string part = m.text.substr(from, to - from);
+    from = to + 1;
+    const size_t eq = part.find('=');
+    if (eq != std::string::npos) {
+      const std::string name = part.substr(0, eq);
+      const SettingSpec* s = findSetting(m.isBullet() && name == "it" ? "iterations" : name);
+      const std::string k = s ? s->key : "";
+      if (k == "dt" || k == "substeps" || k == "iterations") continue;
+    }
+    key += (key.empty() ? "" : ":") + part;
+  }
+  return key;
+}
+
+}  // namespace
+
+SearchOrder::SearchOrder(const std::vector<Method>& candidates, const std::vector<double>& work)
+    : work_(work), given_(work.size(), false), ladderOf_(work.size(), 0) {
+  for (size_t i = 0; i < work.size(); ++i) byWork_.push_back(i);
+  std::stable_sort(byWork_.begin(), byWork_.end(), [&](size_t a, size_t b) { return work_[a] < work_[b]; });
+  std::map<std::string, size_t> ladderIndex;
+  for (size_t i : byWork_) {
+    const auto [it, added] = ladderIndex.emplace(ladderOf(candidates[i]), ladders_.size());
+    if (added) ladders_.emplace_back();
+    ladders_[it->second].rungs.push_back(i);
+    ladderOf_[i] = it->second;
+  }
+}
+
+std::optional<size_t> SearchOrder::Ladder::probe() const {
+  const int top = static_cast<int>(rungs.size()) - 1;
+  if (lowestMet < 0) {
+    // Climbing: rungs 0, 1, 3, 7, ... (each twice as far up), the top last.
+    if (highestMissed >= top) return std::nullopt;
+    return static_cast<size_t>(std::min(std::max(2 * highestMissed + 1, 0), top));
+  }
+  if (lowestMet - highestMissed <= 1) return std::nullopt;
+  return static_cast<size_t>((highestMissed + lowestMet) / 2);  // bisecting
+}
+
+std::optional<size_t> SearchOrder::next(const std::function<bool(double)>& ruledOut) {
+  // The cheapest candidate not yet given ...
+  std::optional<size_t> frontier;
+  for (size_t c : byWork_)
+    if (!given_[c] && !ruledOut(work_[c])) {
+      frontier = c;
+      break;
+    }
+  if (!frontier) return std::nullopt;
+  // ... unless a ladder asks for a rung less than kReach times its work: the cheapest such probe.
+  std::optional<size_t> best;
+  for (const Ladder& l : ladders_) {
+    const std::optional<size_t> rung = l.probe();
+    if (!rung) continue;
+    const size_t c = l.rungs[*rung];
+    if (given_[c] || ruledOut(work_[c]) || work_[c] > kReach * work_[*frontier]) continue;
+    if (!best || work_[c] < work_[*best]) best = c;
+  }
+  const size_t c = best ? *best : *frontier;
+  given_[c] = true;
+  return c;
+}
+
+void SearchOrder::report(size_t candidate, bool met) {
+  Ladder& l = ladders_[ladderOf_[candidate]];
+  const int rung = static_cast<int>(std::find(l.rungs.begin(), l.rungs.end(), candidate) - l.rungs.begin());
+  if (met) {
+    if (l.lowestMet < 0 || rung < l.lowestMet) l.lowestMet = rung;
+  } else if (l.lowestMet < 0 || rung < l.lowestMet) {
+    l.highestMissed = std::max(l.highestMissed, rung);
+  }
+}
+
+std::vector<size_t> SearchOrder::left(const std::function<bool(double)>& ruledOut) const {
+  std::vector<size_t> out;
+  for (size_t c : byWork_)
+    if (!given_[c] && !ruledOut(work_[c])) out.push_back(c);
+  return out;
+}
+
+Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<void(size_t, size_t, const Candidate&)>& progress) {
+  if (o.targets.empty()) throw std::invalid_argument("advise: no target (a quantity's bound, \"stand\" or \"criteria\")");
+  for (const Target& t : o.targets)
+    if (t.metric == "criteria" && !(scene.criteria && hasChecks(*scene.criteria)))
+      throw std::invalid_argument("advise: a \"criteria\" target on " + scene.file +
+                                  ", which states no criteria.pass (nor moving, stay_in, turns) to pass");
+  std::vector<Method> candidates = o.candidates.empty() ? defaultCandidates() : o.candidates;
+  std::vector<double> work;
+  for (const Method& m : candidates) work.push_back(estimatedWork(m, scene));
+  SearchOrder order(candidates, work);
+
+  // The scene's own reference (a converged run costs) is part of the search's time.
+  const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
   std::optional<PreparedReference> reference = o.reference;
   if (!reference && scene.criteria && scene.criteria->reference) reference = prepareReference(scene, *scene.criteria->reference, o.seconds);
   Advice a;
   a.total = candidates.size();
-  const auto start = std::chrono::steady_clock::now();
-  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
   double cheapestPassWork = INFINITY;
   int passes = 0;
   // Beyond what the cheapest that met could lose to: its measured cost may be off from the
@@ -158,14 +265,31 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
   auto ruledOut = [&](double work) {
     return (passes >= 2 && work > 1.5 * cheapestPassWork) || (passes == 1 && work > 3 * cheapestPassWork);
   };
-  for (size_t k = 0; k < order.size(); ++k) {
-    const auto& [work, index] = order[k];
-    if (ruledOut(work)) break;
-    if ((o.maxRuns > 0 && static_cast<int>(a.tried.size()) >= o.maxRuns) || elapsed() >= o.timeBudget) {
-      a.budgetSpent = true;
-      for (size_t r = k; r < order.size() && !ruledOut(order[r].first); ++r) a.notRun.push_back(candidates[order[r].second]);
+  // The two cheapest that met so far, by the cost of their first run.
+  std::vector<double> wall;  // [s] of each run tried
+  auto rank = [&] {
+    a.best = a.runnerUp = -1;
+    for (size_t i = 0; i < a.tried.size(); ++i) {
+      const Candidate& c = a.tried[i];
+      if (!c.meets) continue;
+      const int k = static_cast<int>(i);
+      if (a.best < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.best)].run.msPerSecond()) {
+        a.runnerUp = a.best;
+        a.best = k;
+      } else if (a.runnerUp < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.runnerUp)].run.msPerSecond()) {
+        a.runnerUp = k;
+      }
+    }
+  };
+  for (;;) {
+    if ((o.maxRuns > 0 && static_cast<int>(a.tried.size()) >= o.maxRuns) || o.budgetUsed + elapsed() >= o.timeBudget) {
+      for (size_t r : order.left(ruledOut)) a.notRun.push_back(candidates[r]);
+      a.budgetSpent = !a.notRun.empty();
       break;
     }
+    const std::optional<size_t> next = order.next(ruledOut);
+    if (!next) break;
+    const size_t index = *next;
     Candidate c;
     c.method = candidates[index];
     RunSetup setup;
@@ -190,6 +314,7 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
       }
       return "";
     };
+    const auto ran = std::chrono::steady_clock::now();
     c.run = runMethod(scene, c.method, setup);
     // Judged on the whole run (or as far as it got).
     c.meets = !c.run.refused && !c.run.diverged && c.run.stoppedEarly.empty();
@@ -221,31 +346,32 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
     // Standing: the later it moved, the closer (never: the closest of all).
     if (o.targets.front().metric == "stand") c.value = c.run.metrics.collapseTime ? -*c.run.metrics.collapseTime : -INFINITY;
     if (c.meets) {
-      // Timed again, whole, with repeats: the cost that ranks it.
-      RunSetup timed = setup;
-      timed.stop = nullptr;
-      timed.repeat = o.repeat;
-      c.run = runMethod(scene, c.method, timed);
       ++passes;
-      cheapestPassWork = std::min(cheapestPassWork, work);
+      cheapestPassWork = std::min(cheapestPassWork, work[index]);
     }
+    order.report(index, c.meets);
     a.tried.push_back(std::move(c));
-    if (progress) progress(a.tried.size(), order.size(), a.tried.back());
+    wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - ran).count());
+    rank();
+    if (progress) progress(a.tried.size(), candidates.size(), a.tried.back());
   }
+  // The two cheapest that met, timed again whole (median of the repeats, no observer stopping
+  // them), ranked again by that cost; with fewer repeats (one at least) where the budget left
+  // has no room for them all.
+  for (int k : {a.best, a.runnerUp}) {
+    if (k < 0 || o.repeat < 1) continue;
+    Candidate& c = a.tried[static_cast<size_t>(k)];
+    const double left = o.timeBudget - o.budgetUsed - elapsed(), one = wall[static_cast<size_t>(k)];
+    RunSetup timed;
+    timed.seconds = o.seconds;
+    timed.reference = reference ? &*reference : nullptr;
+    timed.repeat = std::clamp(static_cast<int>(std::floor(left / std::max(one, 1e-9))), 1, o.repeat);
+    c.run = runMethod(scene, c.method, timed);
+  }
+  if (a.runnerUp >= 0 && a.tried[static_cast<size_t>(a.runnerUp)].run.msPerSecond() < a.tried[static_cast<size_t>(a.best)].run.msPerSecond())
+    std::swap(a.best, a.runnerUp);
   a.searched = a.tried.size();
   a.seconds = elapsed();
-  // Rank what met the targets by measured cost per simulated second.
-  for (size_t i = 0; i < a.tried.size(); ++i) {
-    const Candidate& c = a.tried[i];
-    if (!c.meets) continue;
-    const int k = static_cast<int>(i);
-    if (a.best < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.best)].run.msPerSecond()) {
-      a.runnerUp = a.best;
-      a.best = k;
-    } else if (a.runnerUp < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.runnerUp)].run.msPerSecond()) {
-      a.runnerUp = k;
-    }
-  }
   if (a.best < 0)
     for (size_t i = 0; i < a.tried.size(); ++i) {
       const Candidate& c = a.tried[i];

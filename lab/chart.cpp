@@ -55,6 +55,7 @@ struct Point {
   double dt = NAN;
   int n = 1, m = 1;
   bool diverged = false;
+  bool zeroError = false, zeroCost = false;  // drawn at a log axis's floor (the Pareto chart)
 };
 
 std::string metricOf(const json& row, const ChartOptions& o) {
@@ -94,21 +95,33 @@ std::string header(const std::string& title, const std::string& x, const std::st
          "set format x '%g'\nset format y '%g'\n";
 }
 
-// A floor for log axes: a zero error is drawn there (and said so).
-double logFloor(const std::vector<Point>& pts) {
+// A floor for log axes: a zero error (or cost) is drawn there, a tenth of the least other (and
+// said so); `none` when there is no other.
+double logFloor(const std::vector<Point>& pts, double Point::*field = &Point::error, double none = 1e-12) {
   double lo = INFINITY;
   for (const Point& p : pts)
-    if (p.error > 0) lo = std::min(lo, p.error);
-  return std::isfinite(lo) ? lo / 10 : 1e-12;
+    if (p.*field > 0) lo = std::min(lo, p.*field);
+  return std::isfinite(lo) ? lo / 10 : none;
 }
 
-// Said on a chart that draws zero errors at logFloor().
-std::string zeroNote(double floor) {
+// What a chart that draws zero errors at logFloor() says of it.
+std::string zeroText(double floor) {
   char at[32];
   std::snprintf(at, sizeof at, "%.3g", floor);
-  return "set label 10 'a zero error is drawn at " + std::string(at) + " (a tenth of the least other)' at graph 0.01, "
-         "graph 0.03 font ',8'\n";
+  return "a zero error is drawn at " + std::string(at) + " (a tenth of the least other)";
 }
+// ... zero costs (a run quicker than the clock's resolution): on the Pareto chart only.
+std::string zeroCostText(double floor) {
+  char at[32];
+  std::snprintf(at, sizeof at, "%.3g", floor);
+  return "a zero cost is drawn at " + std::string(at) + " ms (a tenth of the least other)";
+}
+// A note in the plot's lower left corner: label 10 the first line, 11 the one above it.
+const double kNoteY[] = {0.03, 0.07};
+std::string noteLabel(int line, const std::string& text) {
+  return "set label " + std::to_string(10 + line) + " '" + text + "' at graph 0.01, graph " + num(kNoteY[line]) + " font ',8'\n";
+}
+std::string zeroNote(double floor) { return noteLabel(0, zeroText(floor)); }
 
 // The Pareto chart's frame in pixels, fixed so that labels can be placed where gnuplot will draw
 // them: the plot area, the ranges it spans (log10) and the list under it.
@@ -144,14 +157,19 @@ Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::s
                   const ChartOptions& options) {
   Chart c;
   c.name = scene + "-pareto";
-  const double floor = logFloor(pts);
+  const double floor = logFloor(pts), costFloor = logFloor(pts, &Point::cost, 1e-3);
   double top = 0;
-  bool zero = false;
+  bool zero = false, zeroCost = false;
   for (Point& p : pts) {
     if (p.error == 0) {
       p.error = floor;
       p.label += p.label.empty() ? "0" : " (0)";
-      zero = true;
+      zero = p.zeroError = true;
+    }
+    if (p.cost <= 0) {
+      p.cost = costFloor;
+      p.label += p.label.empty() ? "cost 0" : " (cost 0)";
+      zeroCost = p.zeroCost = true;
     }
     if (std::isfinite(p.error)) top = std::max(top, p.error);
   }
@@ -216,7 +234,12 @@ Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::s
     obstacles.push_back({std::min(x0, x1), y0 - 2, std::max(x0, x1), y0 + 2});
     obstacles.push_back({x1 - 2, std::min(y0, y1), x1 + 2, std::max(y0, y1)});
   }
-  if (zero) obstacles.push_back(labelBox(std::string(68, 'x'), f.plot.x0 + 0.01 * (f.plot.x1 - f.plot.x0), f.plot.y1 - 0.03 * (f.plot.y1 - f.plot.y0)));
+  // The notes in the lower left corner (zeroNote's first line, the cost's above it).
+  std::vector<std::string> notes;
+  if (zero) notes.push_back(zeroText(floor));
+  if (zeroCost) notes.push_back(zeroCostText(costFloor));
+  for (size_t k = 0; k < notes.size(); ++k)
+    obstacles.push_back(labelBox(notes[k], f.plot.x0 + 0.01 * (f.plot.x1 - f.plot.x0), f.plot.y1 - kNoteY[k] * (f.plot.y1 - f.plot.y0)));
   const std::vector<LabelPlacement> placed = placeLabels(requests, obstacles, f.plot);
 
   // The list: every point whose label did not fit, with its number (its tag, when that fit) and
@@ -225,9 +248,10 @@ Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::s
   for (size_t i = 0; i < order.size(); ++i) {
     if (!placed[i].number) continue;
     const Point* p = order[i];
+    // A zero drawn at a floor is listed as 0, not as where it is drawn.
     char at[96];
-    std::snprintf(at, sizeof at, "%s%.3g ms, %s", placed[i].kind == LabelPlacement::Kind::Tag ? "" : "(no tag) ", p->cost,
-                  p->diverged ? "diverged" : formatMetric(metric, p->error).c_str());
+    std::snprintf(at, sizeof at, "%s%.3g ms, %s", placed[i].kind == LabelPlacement::Kind::Tag ? "" : "(no tag) ", p->zeroCost ? 0.0 : p->cost,
+                  p->diverged ? "diverged" : p->zeroError ? "0" : formatMetric(metric, p->error).c_str());
     list.push_back(std::to_string(placed[i].number) + "  " + p->family + (p->label.empty() ? "" : " " + p->label) + ": " + at);
   }
   size_t longest = 0;
@@ -293,9 +317,11 @@ Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::s
                             "\nset bmargin at screen " + num(1 - f.plot.y1 / f.height) + "\nset xrange [" + num(std::pow(10, f.lx0)) +
                             ":" + num(std::pow(10, f.lx1)) + "]\nset yrange [" + num(std::pow(10, f.ly0)) + ":" + num(std::pow(10, f.ly1)) + "]\n" + logTics("xtics", f.lx0, f.lx1) +
                             logTics("ytics", f.ly0, f.ly1);
-  c.script = header(c.title, x, yLabel(metric)) + "set logscale xy\n" + frame + (zero ? zeroNote(floor) : "") + labels.str() +
-             plot.str() + "\n";
+  std::string noteLabels;
+  for (size_t k = 0; k < notes.size(); ++k) noteLabels += noteLabel(static_cast<int>(k), notes[k]);
+  c.script = header(c.title, x, yLabel(metric)) + "set logscale xy\n" + frame + noteLabels + labels.str() + plot.str() + "\n";
   c.notes.push_back("Pareto front: " + (frontText.empty() ? std::string("none") : frontText));
+  c.notes.insert(c.notes.end(), notes.begin(), notes.end());
   if (!list.empty()) c.notes.push_back(std::to_string(list.size()) + (list.size() == 1 ? " point" : " points") + " not labelled on the chart, listed under it");
   return c;
 }

@@ -167,14 +167,17 @@ std::string recordingFileName(const Scene& scene, const std::string& method, con
   return safe(sceneName(scene)) + "-" + safe(method) + (dt ? "-h" + safe(stepText(*dt)) : "") + ".rec";
 }
 
+std::optional<std::string> statedErrorMetric(const Scene& scene) {
+  if (!scene.criteria) return std::nullopt;
+  const SceneCriteria& c = *scene.criteria;
+  if (!c.error.empty()) return c.error;
+  if (!c.pass.empty()) return c.pass.front().first;
+  if (c.reference) return c.reference->kind == SceneReference::Kind::TorqueFree ? "reference_error" : "trajectory_error";
+  return std::nullopt;
+}
+
 std::string errorMetric(const Scene& scene) {
-  if (scene.criteria && !scene.criteria->error.empty()) return scene.criteria->error;
-  if (scene.criteria && !scene.criteria->pass.empty()) return scene.criteria->pass.front().first;
-  if (scene.criteria && scene.criteria->reference) {
-    const auto k = scene.criteria->reference->kind;
-    return k == SceneReference::Kind::TorqueFree ? "reference_error" : "trajectory_error";
-  }
-  return scene.model.joints.empty() ? "penetration" : "joint_error";
+  return statedErrorMetric(scene).value_or(scene.model.joints.empty() ? "penetration" : "joint_error");
 }
 
 std::string runKey(const Scene& scene, const std::string& method, double dt, double seconds) {

@@ -12,10 +12,12 @@
 
 namespace substep::lab {
 
-// The quantity a scene's charts and advice call "error": the scene's criteria "error", else the
-// first quantity its pass criteria bound, else the trajectory error when a reference gives one
-// (the reference's own error for torque-free rotation), else the largest joint error when the
-// scene has joints, else the largest penetration.
+// The quantity a scene's criteria make its "error": the criteria's "error", else the first
+// quantity its pass criteria bound, else the trajectory error when a reference gives one (the
+// reference's own error for torque-free rotation); nullopt when the scene states none.
+std::optional<std::string> statedErrorMetric(const Scene& scene);
+// The quantity a scene's charts and advice call "error": the stated one, else the largest joint
+// error when the scene has joints, else the largest penetration.
 std::string errorMetric(const Scene& scene);
 
 // Where a run sits in a sweep: which plan (a hash of every run's key, in order), its index, and

@@ -159,22 +159,36 @@ class Sample final : public RunObserver {
   TrajectorySampler& s_;
 };
 
+// Ends a run once the wall clock passes a deadline.
+class Deadline final : public RunObserver {
+ public:
+  explicit Deadline(std::chrono::steady_clock::time_point at) : at_(at) {}
+  std::string stop(const Engine&) override { return std::chrono::steady_clock::now() >= at_ ? "out of time" : ""; }
+
+ private:
+  std::chrono::steady_clock::time_point at_;
+};
+
 TrajectorySampler sampledRun(const Scene& scene, const SolverSettings& settings, double seconds, double interval,
-                             const std::string& what) {
+                             const std::string& what, std::chrono::steady_clock::time_point deadline) {
   TrajectorySampler sampler(scene.model, scene.initial, interval);
   World world(scene.model, settings, scene.initial);
   WorldEngine engine(world);
   Sample sample(sampler);
+  Deadline stop(deadline);
   RunDriver run(engine, static_cast<long long>(std::ceil(seconds / settings.dt - 1e-9)));
-  const RunOutcome& o = run.add(sample).run();
+  const RunOutcome& o = run.add(sample).add(stop).run();
   if (o.end == RunOutcome::End::Refused) throw ReferenceError(what + " cannot run the scene: " + o.message);
   if (o.end == RunOutcome::End::Diverged) throw ReferenceError(what + ": " + o.message);
+  if (o.end == RunOutcome::End::Stopped)
+    throw TimeBudgetSpent(what + " was at step " + std::to_string(o.steps) + " of " + std::to_string(run.planned()));
   return sampler;
 }
 
 }  // namespace
 
-ConvergedReference convergedReference(const Scene& scene, const SceneReference& ref, double seconds, double interval) {
+ConvergedReference convergedReference(const Scene& scene, const SceneReference& ref, double seconds, double interval,
+                                      std::chrono::steady_clock::time_point deadline) {
   const std::vector<Method> m = parseMethods(ref.method);
   if (m.size() != 1 || m[0].isPeer())
     throw ReferenceError("reference \"" + ref.method + "\": expected one of substep's algorithms at a small h");
@@ -182,8 +196,8 @@ ConvergedReference convergedReference(const Scene& scene, const SceneReference& 
   SolverSettings fine = coarse;
   fine.dt = coarse.dt / 2;
   const std::string what = "the reference " + ref.method;
-  TrajectorySampler a = sampledRun(scene, coarse, seconds, interval, what);
-  TrajectorySampler b = sampledRun(scene, fine, seconds, interval, what + " at h/2");
+  TrajectorySampler a = sampledRun(scene, coarse, seconds, interval, what, deadline);
+  TrajectorySampler b = sampledRun(scene, fine, seconds, interval, what + " at h/2", deadline);
   double motion = 0;
   for (const auto& row : b.samples())
     for (size_t i = 0; i < row.size(); ++i) motion = std::max(motion, (row[i] - b.samples()[0][i]).norm());

@@ -8,6 +8,7 @@
 
 #include "physics/scene_file.h"
 
+#include <chrono>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -79,9 +80,15 @@ struct ReferenceError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Wall time given to a computation ran out before it had an answer; the message says how far it got.
+struct TimeBudgetSpent : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // The converged run: the scene under the reference's method at h and at h/2 for `seconds`;
 // accepted when the two differ by at most `change` of the motion (the largest displacement of a
-// body in the finer run), and then the finer run is the reference. Throws ReferenceError.
+// body in the finer run), and then the finer run is the reference. Throws ReferenceError, or
+// TimeBudgetSpent when the wall clock passes `deadline` during the runs.
 struct ConvergedReference {
   std::string method;             // as stated, e.g. "a1:h=1/960"
   double dt = 0;                  // the finer run's [s]
@@ -89,6 +96,7 @@ struct ConvergedReference {
   double change = 0;              // the halving's change [m]
   double motion = 0;              // [m]
 };
-ConvergedReference convergedReference(const Scene& scene, const SceneReference& ref, double seconds, double interval);
+ConvergedReference convergedReference(const Scene& scene, const SceneReference& ref, double seconds, double interval,
+                                      std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max());
 
 }  // namespace substep::lab

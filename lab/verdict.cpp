@@ -14,8 +14,19 @@ const char* resultName(Verdict::Result r) {
   return "?";
 }
 
+double checkMargin(const Check& c) {
+  if (!c.ok) return NAN;
+  switch (c.kind) {
+    case Check::Kind::AtMost: return 1 - c.ratio;                         // ratio: value / bound
+    case Check::Kind::AtLeast: return c.ratio > 0 ? 1 / c.ratio - 1 : NAN;  // ratio: bound / value
+    case Check::Kind::Holds: return NAN;
+  }
+  return NAN;
+}
+
 Check checkAtMost(const std::string& name, std::optional<double> value, double bound) {
   Check c;
+  c.kind = Check::Kind::AtMost;
   if (!value) {
     c.text = std::string(metricLabel(name)) + ": not measured in this run";
     c.ratio = INFINITY;
@@ -26,6 +37,8 @@ Check checkAtMost(const std::string& name, std::optional<double> value, double b
   c.text = comparisonText(name, *value, c.ok ? "<=" : ">", bound);
   return c;
 }
+
+bool hasChecks(const SceneCriteria& c) { return !c.pass.empty() || c.moving || c.stayIn || c.turns; }
 
 Verdict judge(const Scene& scene, const RunResult& run) {
   Verdict v;
@@ -42,6 +55,7 @@ Verdict judge(const Scene& scene, const RunResult& run) {
   if (c.moving) {
     const double least = m.movingLeast.value_or(0);
     Check k;
+    k.kind = Check::Kind::AtLeast;
     k.ok = least >= c.moving->atLeast;
     k.ratio = least > 0 ? c.moving->atLeast / least : INFINITY;
     k.text = "the sliding bodies moved at least " + formatLength(least) + (k.ok ? " >= " : " < ") + formatLength(c.moving->atLeast);
@@ -55,6 +69,7 @@ Verdict judge(const Scene& scene, const RunResult& run) {
   if (c.turns) {
     const double most = m.turnedMost.value_or(0);
     Check k;
+    k.kind = Check::Kind::AtLeast;
     k.ok = most >= c.turns->atLeast;
     k.ratio = most > 0 ? c.turns->atLeast / most : INFINITY;
     char buf[96];
@@ -63,21 +78,21 @@ Verdict judge(const Scene& scene, const RunResult& run) {
     v.checks.push_back(k);
   }
   // A scene that states no check has no verdict, whatever became of the run.
-  if (c.pass.empty() && !c.moving && !c.stayIn && !c.turns) {
+  if (!hasChecks(c)) {
     v.checks.clear();
     return v;
   }
   v.result = Verdict::Result::Pass;
-  const Check* decisive = nullptr;
-  for (const Check& k : v.checks) {
+  for (size_t i = 0; i < v.checks.size(); ++i) {
+    const Check& k = v.checks[i];
     if (!k.ok) {
       v.result = Verdict::Result::Fail;
-      decisive = &k;
+      v.decisive = static_cast<int>(i);
       break;
     }
-    if (!decisive || k.ratio > decisive->ratio) decisive = &k;
+    if (v.decisive < 0 || k.ratio > v.checks[static_cast<size_t>(v.decisive)].ratio) v.decisive = static_cast<int>(i);
   }
-  if (decisive) v.figure = decisive->text;
+  if (v.decisive >= 0) v.figure = v.checks[static_cast<size_t>(v.decisive)].text;
   return v;
 }
 

@@ -389,6 +389,21 @@ void Reader::readCriteria(const Obj& o, Scene& scene) const {
     }
     c.reference = ref;
   }
+  // The two quantities a reference gives: named without one that gives them, they measure nothing
+  // (every run "not measured").
+  auto measuredAgainstReference = [&](const std::string& name, const std::string& path) {
+    using K = SceneReference::Kind;
+    const std::optional<K> kind = c.reference ? std::optional<K>(c.reference->kind) : std::nullopt;
+    if (name == "trajectory_error" && (!kind || kind == K::TorqueFree))
+      fail(path, std::string("trajectory_error is the distance from a reference trajectory, and ") +
+                     (kind ? "a torque_free reference gives none" : "the criteria state no reference") +
+                     "; give criteria.reference (pendulum, free_fall or converged, e.g. {\"type\": \"converged\", \"method\": \"a1:h=1/960\"})");
+    if (name == "reference_error" && kind != K::Pendulum && kind != K::TorqueFree)
+      fail(path, std::string("reference_error is the error against a closed form, and ") +
+                     (kind ? "a free_fall or converged reference gives none (its error is trajectory_error)" : "the criteria state no reference") +
+                     "; give criteria.reference of type pendulum or torque_free");
+  };
+  if (!c.error.empty()) measuredAgainstReference(c.error, o.at("error"));
   if (o.has("with")) {
     const Obj w(*this, o.need("with"), o.at("with"));
     readSolver(w, c.with);
@@ -401,7 +416,10 @@ void Reader::readCriteria(const Obj& o, Scene& scene) const {
     keys.insert(keys.end(), {"moving", "stay_in", "turns"});
     p.allow(keys);
     for (const std::string& name : criterionMetrics())
-      if (p.has(name)) c.pass.emplace_back(name, p.number(name, kBound));
+      if (p.has(name)) {
+        measuredAgainstReference(name, p.at(name));
+        c.pass.emplace_back(name, p.number(name, kBound));
+      }
     if (p.has("moving")) {
       const Obj m(*this, p.need("moving"), p.at("moving"));
       m.allow({"bodies", "at_least"});

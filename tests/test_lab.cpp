@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -329,6 +330,37 @@ TEST(Records, OneRecordPerRun) {
   EXPECT_EQ(errorMetric(loadScene(kScenes + "/reference/free_fall.json")), "trajectory_error");
 }
 
+// What a scene's criteria state: checks to pass (one test serves the verdict and advise) and an
+// error measure (the stated one serves errorMetric and advise's --max-error).
+TEST(Verdicts, TheChecksAndTheErrorASceneStates) {
+  auto scene = [](const std::string& criteria) {
+    return sceneFrom(R"({"bodies": [
+        {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [5, 0.5, 5]}, "position": [0, -0.5, 0]},
+        {"name": "box", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 0.5, 0], "mass": 1}])" +
+                     (criteria.empty() ? "" : ", \"criteria\": " + criteria) + "}");
+  };
+  const Scene bare = scene("");
+  EXPECT_FALSE(statedErrorMetric(bare));
+  EXPECT_EQ(errorMetric(bare), "penetration");
+  const Scene errorOnly = scene(R"({"error": "jitter", "rest": ["box"]})");
+  EXPECT_FALSE(hasChecks(*errorOnly.criteria));
+  EXPECT_EQ(statedErrorMetric(errorOnly), "jitter");
+  RunSetup setup;
+  setup.seconds = 0.1;
+  EXPECT_EQ(judge(errorOnly, runMethod(errorOnly, method("a5"), setup)).result, Verdict::Result::NoCriteria);
+  const Scene torqueFree = scene(R"({"reference": {"type": "torque_free"}})");
+  EXPECT_FALSE(hasChecks(*torqueFree.criteria));
+  EXPECT_EQ(statedErrorMetric(torqueFree), "reference_error");
+  for (const char* pass : {R"({"displacement": 0.01})", R"({"moving": {"bodies": "box", "at_least": 0.1}})",
+                           R"({"stay_in": {"body": "box", "min": [-1, -1, -1], "max": [1, 1, 1]}})",
+                           R"({"turns": {"body": "box", "axis": [0, 1, 0], "at_least": 1}})"}) {
+    const Scene s = scene(std::string(R"({"pass": )") + pass + "}");
+    EXPECT_TRUE(hasChecks(*s.criteria)) << pass;
+    EXPECT_NE(judge(s, runMethod(s, method("a5"), setup)).result, Verdict::Result::NoCriteria) << pass;
+  }
+  EXPECT_EQ(statedErrorMetric(scene(R"({"pass": {"displacement": 0.01}})")), "displacement");
+}
+
 TEST(Charts, ParetoFrontAndSlope) {
   const std::vector<std::pair<double, double>> pts = {{1, 10}, {2, 5}, {3, 6}, {4, 1}, {0.5, 20}, {5, 1}};
   EXPECT_EQ(paretoFront(pts), (std::vector<size_t>{4, 0, 1, 3}));
@@ -399,6 +431,49 @@ TEST(Charts, OneNIsNoLineAndZeroIsLabelled) {
   // A second n for one family makes the chart.
   rows.push_back(fakeRow("z", "a5:n=8", "a5", 8, 1, 1.0 / 60, 0, 0.02));
   EXPECT_EQ(makeCharts(rows, ChartOptions{}).size(), 2u);
+}
+
+// A zero error is listed under the chart as 0, not as the floor it is drawn at; a zero cost (a run
+// quicker than the clock) is drawn at a floor of the log x axis (a tenth of the least other),
+// labelled "cost 0", listed as 0 ms, and the chart and its notes say where. Crowded at one point
+// so that some are listed.
+TEST(Charts, ZerosAreDrawnAtTheFloorAndListedAsZero) {
+  std::vector<nlohmann::json> rows;
+  for (int k = 0; k < 8; ++k)
+    rows.push_back(fakeRow("z", "a5:n=" + std::to_string(k + 1) + ":m=4", "a5", k + 1, 4, 1.0 / 60, 0, 0.05));
+  rows.push_back(fakeRow("z", "a2:m=4", "a2", 1, 4, 1.0 / 60, 0.2, 0.004));
+  rows.push_back(fakeRow("z", "a2:m=8", "a2", 1, 8, 1.0 / 60, 0.1, 0));
+  const ChartOptions o;
+  const std::vector<Chart> charts = makeCharts(rows, o);
+  ASSERT_FALSE(charts.empty());
+  const Chart& c = charts[0];
+  ASSERT_EQ(c.name, "z-pareto");
+  // The floors: errors at 0.01 (a tenth of 0.1), costs at 0.024 ms (a tenth of 0.004 * 60).
+  EXPECT_NE(c.script.find("a zero error is drawn at 0.01 (a tenth of the least other)"), std::string::npos) << c.script;
+  EXPECT_NE(c.script.find("a zero cost is drawn at 0.024 ms (a tenth of the least other)"), std::string::npos) << c.script;
+  EXPECT_NE(std::find(c.notes.begin(), c.notes.end(), "a zero cost is drawn at 0.024 ms (a tenth of the least other)"), c.notes.end());
+  EXPECT_NE(c.data.find("0.024 0.1\n"), std::string::npos) << c.data;  // the zero-cost point, at the floor
+  // A finite x range with the floor in it.
+  std::smatch range;
+  ASSERT_TRUE(std::regex_search(c.script, range, std::regex(R"(set xrange \[([^:]+):([^\]]+)\])"))) << c.script;
+  const double x0 = std::stod(range[1]), x1 = std::stod(range[2]);
+  EXPECT_TRUE(std::isfinite(x0) && x0 > 0 && x0 < 0.024 && x1 > 3) << range[0];
+  EXPECT_TRUE(c.script.find("\"m=8 (cost 0)\" at screen") != std::string::npos ||
+              c.script.find("  a2 m=8 (cost 0): (no tag) 0 ms, 10.0 cm") != std::string::npos ||
+              c.script.find("  a2 m=8 (cost 0): 0 ms, 10.0 cm") != std::string::npos)
+      << c.script;
+  // The zero errors in the list: "0", never the floor's 1.00 cm.
+  int listed = 0;
+  for (int k = 0; k < 8; ++k) {
+    const std::string entry = "  a5 n=" + std::to_string(k + 1) + " m=4 (0): ";
+    const size_t at = c.script.find(entry);
+    if (at == std::string::npos) continue;
+    ++listed;
+    const std::string line = c.script.substr(at, c.script.find('"', at) - at);
+    EXPECT_EQ(line.substr(line.size() - 3), ", 0") << line;
+  }
+  EXPECT_GE(listed, 3);  // of the eight at one point, most find no room
+  EXPECT_EQ(c.script.find("1.00 cm\""), std::string::npos) << c.script;
 }
 
 // Labels placed around clustered points: none overlaps another, covers a point or leaves the
@@ -613,6 +688,106 @@ TEST(Advice, CheapestThatMeetsTheTarget) {
   EXPECT_GE(none.closest, 0);
   EXPECT_EQ(estimatedWork(method("a5:n=4:m=1"), s) < estimatedWork(method("a5:n=8:m=1"), s), true);
   EXPECT_GT(defaultCandidates().size(), 500u);
+}
+
+// The library refuses what the command refuses: a "criteria" target on a scene that states no
+// checks (no criteria; criteria with an error measure only), which it would otherwise read from
+// criteria that are not there, and no target at all.
+TEST(Advice, ACriteriaTargetNeedsTheScenesChecks) {
+  AdviseOptions o;
+  o.seconds = 0.1;
+  o.candidates = parseMethods("a5");
+  o.repeat = 1;
+  o.targets = {Target{"criteria", 0}};
+  for (const char* name : {"stack.json", "pyramid.json"}) {
+    const Scene s = loadScene(kScenes + "/" + name);
+    try {
+      advise(s, o);
+      ADD_FAILURE() << name << ": no error";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string(name) + ", which states no criteria.pass (nor moving, stay_in, turns)"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  const Scene wall = loadScene(kScenes + "/atlas/projectile_wall.json");
+  EXPECT_EQ(advise(wall, o).tried.size(), 1u);
+  o.targets.clear();
+  EXPECT_THROW(advise(wall, o), std::invalid_argument);
+}
+
+// Wall time spent before the search (finding a reference) is part of its budget: with all of it
+// spent, nothing runs and every candidate is left, said as the budget's.
+TEST(Advice, TimeSpentBeforeTheSearchCountsAgainstTheBudget) {
+  const Scene wall = loadScene(kScenes + "/atlas/projectile_wall.json");
+  AdviseOptions o;
+  o.seconds = 0.2;
+  o.candidates = parseMethods("a5,a2:m=4");
+  o.repeat = 1;
+  o.targets = {Target{"penetration", 0.05}};
+  o.timeBudget = 30;
+  o.budgetUsed = 30;
+  const Advice spent = advise(wall, o);
+  EXPECT_TRUE(spent.tried.empty());
+  EXPECT_TRUE(spent.budgetSpent);
+  EXPECT_EQ(spent.notRun.size(), 2u);
+  o.budgetUsed = 0;
+  const Advice a = advise(wall, o);
+  EXPECT_FALSE(a.tried.empty());
+  EXPECT_FALSE(a.budgetSpent);
+}
+
+// The search climbs each method's ladder (its candidates that differ in h, n and m, cheapest first)
+// at rungs 0, 1, 3, 7, ... and bisects once one meets; so where every other method misses, the one
+// that meets high on its ladder is found after a few probes of each, not after every cheaper
+// candidate (taken in order of work, the 20 ladders that miss would be run to their 13th rung
+// first: the first that meets would be the 273rd run). And nothing is lost: every candidate is
+// given once.
+TEST(Advice, LaddersAreClimbedAndEveryCandidateIsGiven) {
+  std::vector<Method> candidates;
+  std::vector<double> work;
+  for (int l = 0; l <= 20; ++l)  // ladder 20 is the soft step; it meets from its 12th rung
+    for (int rung = 0; rung < 16; ++rung) {
+      const std::string n = "n=" + std::to_string(1 + rung);
+      candidates.push_back(parseMethods(l == 20 ? "soft:" + n : "a5:" + n + ":kappa=" + std::to_string(0.25 * (1 + l)) + ":tau=0")[0]);
+      work.push_back(1 + rung + 0.01 * l);
+    }
+  auto meets = [&](size_t c) { return c >= 20 * 16 + 12; };
+  SearchOrder order(candidates, work);
+  const auto never = [](double) { return false; };
+  std::vector<size_t> given;
+  std::optional<size_t> firstMet;
+  while (const std::optional<size_t> c = order.next(never)) {
+    given.push_back(*c);
+    if (meets(*c) && !firstMet) firstMet = given.size();
+    order.report(*c, meets(*c));
+  }
+  // The soft ladder's probes: rungs 0, 1, 3, 7, the top (15), then bisection: 11, 13, 12; the
+  // rungs between come from the cheapest-first fill (rung 2 before the top: the top's work, 16,
+  // is more than kReach = 4 times the cheapest left until every rung 0 to 3 has run).
+  std::vector<size_t> soft;
+  for (size_t c : given)
+    if (c >= 20 * 16) soft.push_back(c - 20 * 16);
+  EXPECT_EQ(std::vector<size_t>(soft.begin(), soft.begin() + 8), (std::vector<size_t>{0, 1, 3, 7, 2, 15, 11, 13}));
+  ASSERT_TRUE(firstMet);
+  EXPECT_LE(*firstMet, 130u);  // in order of work: the 273rd
+  // Every candidate once.
+  std::vector<size_t> sorted = given;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(sorted.size(), candidates.size());
+  EXPECT_EQ(std::adjacent_find(sorted.begin(), sorted.end()), sorted.end());
+  // What the work rules out is not given, and is what left() reports.
+  SearchOrder cut(candidates, work);
+  const auto cheap = [](double w) { return w > 2.5; };
+  size_t n = 0;
+  while (const std::optional<size_t> c = cut.next(cheap)) {
+    EXPECT_LE(work[*c], 3);
+    cut.report(*c, false);
+    ++n;
+  }
+  EXPECT_EQ(n, 21u * 2);
+  EXPECT_TRUE(cut.left(cheap).empty());
+  EXPECT_EQ(SearchOrder(candidates, work).left(cheap).size(), 21u * 2);
 }
 
 // The Bullet peer's state is ours: the same poses and velocities, angular velocity in the body

@@ -465,7 +465,9 @@ double jointErrorOf(const std::string& runArgs, const fs::path& metrics) {
 
 // A user's own scene: a seeded generated chain. One setting of advise's space is run first and
 // its joint error, with room, is the target, so an answer is known to exist; advise with its
-// defaults must find one, and its printed line must meet the target.
+// defaults but the budget must find one, and its printed line must meet the target. The budget is
+// 30 min, not the default minute: the search takes about a second here, but a loaded CI machine (a
+// sanitizer build) must not turn a slow run into a failure; a search that never ends still would.
 TEST(Advise, FindsTheAnswerThatExistsOnAGeneratedChain) {
   const fs::path d = folder();
   int links = 0;
@@ -476,10 +478,10 @@ TEST(Advise, FindsTheAnswerThatExistsOnAGeneratedChain) {
   const double target = 1.2 * known;
   char text[32];
   std::snprintf(text, sizeof text, "%.6fm", target);
-  const Outcome a = run("advise " + scene.string() + " --max-joint-error " + text + " --json");
+  const Outcome a = run("advise " + scene.string() + " --max-joint-error " + text + " --budget 30min --json");
   ASSERT_EQ(a.status, 0) << links << " links, target " << text << "\n" << a.output;
   const json j = json::parse(a.output);
-  EXPECT_FALSE(j["budget_spent"].get<bool>()) << a.output;  // answered well within the minute
+  EXPECT_FALSE(j["budget_spent"].get<bool>()) << a.output;  // the search ended on its own, not on the budget
   const std::string line = j["best"]["run"].get<std::string>();
   EXPECT_LE(jointErrorOf(line.substr(std::string("substep ").size()), d / "best.json"), target) << line;
 }
@@ -501,6 +503,55 @@ TEST(Advise, ComputesAndNamesAConvergedReferenceWhenTheSceneHasNone) {
   EXPECT_GT(r["reference"]["seconds"].get<double>(), 0);
   EXPECT_DOUBLE_EQ(r["reference"]["dt"].get<double>(), 1.0 / 960);
   EXPECT_EQ(r["targets"][0]["metric"], "trajectory_error");
+}
+
+// Bad input is refused before the converged reference is computed (seconds of runs), naming the
+// option; the reference's runs count against --budget, and a budget they use up is said, with how
+// far they got, not answered with a search that ran after it.
+TEST(Advise, InputCheckedFirstAndTheReferenceWithinTheBudget) {
+  const fs::path d = folder();
+  int links = 0;
+  const fs::path scene = generatedChain(d, 5, &links);
+  for (const char* methods : {"a9:n=2", "a5:n=2:m=oops"}) {
+    const Outcome bad = run("advise " + scene.string() + " --max-error 5cm --methods '" + methods + "'");
+    EXPECT_EQ(bad.status, 2) << bad.output;
+    EXPECT_NE(bad.output.find(std::string("--methods: \"") + methods + "\": "), std::string::npos) << bad.output;
+    EXPECT_EQ(bad.output.find("computing a converged one"), std::string::npos) << bad.output;
+  }
+  const Outcome out = run("advise " + scene.string() + " --max-error 5cm --seconds 1 --budget 10ms --methods 'a5:n=2:m=2:h=1/60'");
+  EXPECT_EQ(out.status, 1) << out.output;
+  EXPECT_NE(out.output.find("the time budget (0.01 s) ran out after "), std::string::npos) << out.output;
+  EXPECT_NE(out.output.find(" s computing a converged reference for " + scene.string() + " over 1 s: the reference a1:h=1/480 was at step "),
+            std::string::npos)
+      << out.output;
+  EXPECT_NE(out.output.find("Give a larger --budget"), std::string::npos) << out.output;
+  EXPECT_EQ(out.output.find("searched  "), std::string::npos) << out.output;
+}
+
+// The margin is printed where it means something: under an at-most bound, above an at-least one
+// (how far beyond it), and none for a yes-or-no check: the projectile that stays before the
+// wall is not "100 % under" anything.
+TEST(Advise, AMarginWhereABoundGivesOne) {
+  const Outcome wall = run("advise assets/scenes/atlas/projectile_wall.json --methods a5 --repeat 1");
+  ASSERT_EQ(wall.status, 0) << wall.output;
+  EXPECT_NE(wall.output.find("ball stayed inside its box\n"), std::string::npos) << wall.output;
+  EXPECT_EQ(wall.output.find(" % "), std::string::npos) << wall.output;
+  const Outcome wallJson = run("advise assets/scenes/atlas/projectile_wall.json --methods a5 --repeat 1 --json");
+  ASSERT_EQ(wallJson.status, 0) << wallJson.output;
+  EXPECT_TRUE(json::parse(wallJson.output)["best"]["margin"].is_null()) << wallJson.output;
+  // The implicit gyroscopic term lets the handle flip: turned 180 deg against at least 143 deg.
+  const std::string flip = "advise assets/scenes/atlas/dzhanibekov_implicit.json --methods 'a2:m=2:h=1/30' --repeat 1";
+  const Outcome text = run(flip);
+  ASSERT_EQ(text.status, 0) << text.output;
+  EXPECT_NE(text.output.find(" % above its bound)"), std::string::npos) << text.output;
+  const Outcome j = run(flip + " --json");
+  ASSERT_EQ(j.status, 0) << j.output;
+  const json best = json::parse(j.output)["best"];
+  const double share = best["value"].get<double>();  // bound / turned, the check's ratio
+  ASSERT_GT(share, 0);
+  EXPECT_NEAR(best["margin"].get<double>(), 1 / share - 1, 1e-12);  // (turned - bound) / bound
+  EXPECT_GT(best["margin"].get<double>(), 0);
+  EXPECT_NE(best["margin_text"].get<std::string>().find("% above its bound"), std::string::npos);
 }
 
 // The atlas on two scenes and three methods: the page with every cell filled, a clip per group of

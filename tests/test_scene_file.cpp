@@ -742,6 +742,29 @@ TEST(SceneFrames, FilteringInertiaAndAnchorSize) {
 
 // ---------------------------------------------------------------- criteria (the lab's)
 
+// A quantity a reference gives, named (as the error or a bound) without a reference that gives
+// it, would measure nothing in every run: the file is refused, naming the field and what it needs.
+TEST(SceneCriteria, AReferenceQuantityNeedsItsReference) {
+  const std::string b = ground() + "," + kBall;
+  auto with = [&](const std::string& criteria) { return scene(b, "\"criteria\": " + criteria); };
+  expectError(with(R"({"error": "trajectory_error"})"), "criteria.error",
+              {"trajectory_error is the distance from a reference trajectory", "the criteria state no reference",
+               "give criteria.reference (pendulum, free_fall or converged"});
+  expectError(with(R"({"pass": {"trajectory_error": 0.01}})"), "criteria.pass.trajectory_error", {"the criteria state no reference"});
+  expectError(with(R"({"error": "trajectory_error", "reference": {"type": "torque_free"}})"), "criteria.error",
+              {"a torque_free reference gives none"});
+  expectError(with(R"({"error": "reference_error"})"), "criteria.error",
+              {"reference_error is the error against a closed form", "give criteria.reference of type pendulum or torque_free"});
+  expectError(with(R"({"pass": {"reference_error": 0.01}, "reference": {"type": "free_fall"}})"), "criteria.pass.reference_error",
+              {"its error is trajectory_error"});
+  // With a reference that gives them, as every scene of the repository states them.
+  for (const char* ok : {R"({"error": "trajectory_error", "reference": {"type": "free_fall"}})",
+                         R"({"pass": {"trajectory_error": 0.01}, "reference": {"type": "converged", "method": "a1:h=1/960"}})",
+                         R"({"error": "reference_error", "reference": {"type": "pendulum", "body": "ball", "pivot": [0, 3, 0]}})",
+                         R"({"error": "reference_error", "reference": {"type": "torque_free"}})"})
+    EXPECT_NO_THROW(parse(with(ok))) << ok;
+}
+
 TEST(SceneCriteria, EveryPartIsRead) {
   const std::string bodies = ground() + "," + kBall + R"(, {"name": "box", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [3, 0.5, 0]})";
   const Scene s = parse(scene(bodies, R"("criteria": {
