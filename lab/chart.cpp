@@ -517,9 +517,9 @@ bool speedChart(const std::string& scene, const std::vector<Point>& pts, const s
     ++index;
   }
   c.name = scene + "-speed";
-  c.title = scene + ": " + metricLabel(metric) + " against the real-time factor (each method over h; further right and lower is better)";
+  c.title = scene + ": " + metricLabel(metric) + " against the real-time factor, each method over h";
   c.data = data.str();
-  c.script = header(c.title, "real-time factor (simulated s per wall-clock s, one core)", yLabel(metric)) +
+  c.script = header(c.title, "real-time factor (simulated s per wall-clock s, one core; right and low is better)", yLabel(metric)) +
              "set logscale xy\nset key outside right top box opaque font ',9'\n" + labels.str() + (zero ? zeroNote(floor) : "") +
              plot.str() + "\n";
   return true;
