@@ -1,4 +1,5 @@
 #include "lab/mujoco_peer.h"
+#include "lab/peer_shapes.h"
 
 #include "physics/constraints/joints.h"
 #include "physics/world.h"
@@ -227,12 +228,8 @@ std::vector<std::pair<int, int>> frictionPairs(const Model& model, const std::ve
 }
 
 std::string modelUnsupported(const Model& model) {
+  if (std::string why = unmappedBody(model, "MuJoCo"); !why.empty()) return why;
   for (const Body& b : model.bodies) {
-    const ShapeType t = b.shape.type;
-    if (t == ShapeType::ConvexMesh || t == ShapeType::TriangleMesh)
-      return "body \"" + b.name + "\" is a " + shapeTypeName(t) +
-             " (the MuJoCo peer maps spheres, boxes, capsules, cylinders and static planes)";
-    if (t == ShapeType::Plane && !b.isStatic) return "body \"" + b.name + "\" is a dynamic plane";
     if (b.restitution > 0)
       return "body \"" + b.name + "\" has restitution " + num(b.restitution) +
              " (MuJoCo has no coefficient of restitution: its contacts are damped springs)";

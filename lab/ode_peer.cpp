@@ -1,4 +1,5 @@
 #include "lab/ode_peer.h"
+#include "lab/peer_shapes.h"
 
 #include "physics/constraints/joints.h"
 
@@ -295,13 +296,7 @@ Engine::Step OdeEngine::status() {
 namespace {
 
 std::string modelUnsupported(const Model& model) {
-  for (const Body& b : model.bodies) {
-    const ShapeType t = b.shape.type;
-    if (t == ShapeType::ConvexMesh || t == ShapeType::TriangleMesh)
-      return "body \"" + b.name + "\" is a " + shapeTypeName(t) +
-             " (the ODE peer maps spheres, boxes, capsules, cylinders and static planes)";
-    if (t == ShapeType::Plane && !b.isStatic) return "body \"" + b.name + "\" is a dynamic plane";
-  }
+  if (std::string why = unmappedBody(model, "ODE"); !why.empty()) return why;
   for (const Joint& j : model.joints) {
     if (j.type == JointType::ConeTwist)
       return "joint \"" + j.name + "\" is a cone_twist (ODE has no swing cone; the ODE peer maps ball, hinge and fixed joints)";
