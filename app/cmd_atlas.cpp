@@ -347,15 +347,17 @@ std::vector<lab::Method> atlasMethods(const std::string& text) {
   }
 }
 
-// Every atlas scene, or those named: a name that is not a scene of assets/scenes is one of the atlas's.
+// Every atlas scene, or those named: a bare name is the atlas's scene of that name where there is
+// one (pyramid_40 is also a scene of assets/scenes, without criteria), else a scene as elsewhere.
 std::vector<std::string> atlasScenePaths(const std::vector<std::string>& scenes) {
   std::vector<std::string> paths;
   if (scenes.empty())
     paths = lab::atlasScenes(assetsDir() + "/scenes/atlas");
   else
     for (const std::string& s : scenes) {
-      const std::string p = scenePath(s);
-      paths.push_back(p.find('/') == std::string::npos || fs::exists(p) ? p : assetsDir() + "/scenes/atlas/" + s + ".json");
+      const std::string atlas = assetsDir() + "/scenes/atlas/" + s + ".json";
+      const bool bare = s.find('/') == std::string::npos && scenePath(s) != s;
+      paths.push_back(bare && fs::exists(atlas) ? atlas : scenePath(s));
     }
   if (paths.empty()) throw UsageError("no atlas scenes in " + assetsDir() + "/scenes/atlas");
   return paths;

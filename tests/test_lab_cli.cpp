@@ -587,6 +587,17 @@ TEST(Atlas, PageClipsAndTables) {
   EXPECT_NE(mdText.str().find("| projectile_wall |"), std::string::npos);
 }
 
+// A bare name is the atlas's scene: pyramid_40 names assets/scenes/atlas/pyramid_40.json, not the
+// scene of assets/scenes by that name (which states no criteria and was refused).
+TEST(Atlas, ABareNameIsTheAtlasScene) {
+  const fs::path d = folder();
+  const Outcome a = run("atlas -q --no-clips -o " + d.string() + " --scenes pyramid_40 --methods a2:m=2");
+  ASSERT_EQ(a.status, 0) << a.output;
+  const std::vector<json> r = rows(d / "atlas.jsonl");
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_NE(r[0]["scene_file"].get<std::string>().find("atlas/pyramid_40.json"), std::string::npos) << r[0].dump();
+}
+
 TEST(LabCommands, EveryCommandHasHelp) {
   for (const std::string c : {"sweep", "sweep merge", "chart", "atlas", "advise"}) {
     const Outcome r = run(c + " --help");
