@@ -1,6 +1,7 @@
 // The ODE and MuJoCo peers (lab/ode_peer.h, lab/mujoco_peer.h) against closed forms, beside
 // substep's own methods and Bullet where physics says they must agree, and what they refuse.
 #include "lab/chart.h"
+#include "lab/chart_labels.h"
 #include "lab/compare.h"
 #include "lab/method.h"
 #include "lab/metrics.h"
@@ -15,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <regex>
 #include <string>
 
 using namespace substep;
@@ -264,6 +266,48 @@ TEST(Compare, WhoLeadsIsTheCurveWithMostRunsOnTheFront) {
   EXPECT_NE(speed->data.find("1000 0.5\n500 0.2\n250 0.1\n\n\n"), std::string::npos) << speed->data;
   EXPECT_NE(speed->script.find("title \"exact\""), std::string::npos) << speed->script;
   EXPECT_EQ(speed->script.find("gone"), std::string::npos);  // diverged runs are not a curve
+}
+
+// The speed chart's h labels never overlap: ten curves whose ends fall on one another get each end
+// labelled where the label fits clear of every marker, line and other label, or named in the
+// chart's notes; and where every curve has the same time steps, the title says which end is which.
+TEST(Compare, SpeedChartLabelsNeverOverlap) {
+  auto row = [](int m, const std::string& h, double dt, double msPerSecond, double error) {
+    return nlohmann::json{{"scene", "s"}, {"method", "a2:m=" + std::to_string(m) + ":h=" + h}, {"family", "a2"}, {"h", h},
+                          {"settings", {{"dt", dt}, {"iterations", m}}}, {"cost", {{"ms_per_second", msPerSecond}}},
+                          {"error", {{"metric", "trajectory_error"}}}, {"values", {{"trajectory_error", error}}},
+                          {"refused", false}, {"diverged", false}, {"finite", true}};
+  };
+  std::vector<nlohmann::json> rows;
+  for (int k = 0; k < 10; ++k) {
+    const int m = 2 + k;
+    rows.push_back(row(m, "1/30", 1.0 / 30, 1 + 0.01 * k, 0.5));
+    rows.push_back(row(m, "1/60", 1.0 / 60, 2 + 0.01 * k, 0.2));
+    if (k == 0) rows.push_back(row(m, "1/120", 1.0 / 120, 4, 0.1));  // steps not all the same: ends labelled
+  }
+  const ChartOptions options;
+  auto speedOf = [&](const std::vector<nlohmann::json>& r) {
+    for (const Chart& c : makeCharts(r, options))
+      if (c.name == "s-speed") return c;
+    ADD_FAILURE() << "no speed chart";
+    return Chart{};
+  };
+  const Chart c = speedOf(rows);
+  const std::regex label(R"re(set label \d+ "([^"]*)" at screen ([0-9.e-]+), screen ([0-9.e-]+) left)re");
+  std::vector<Box> boxes;
+  for (auto it = std::sregex_iterator(c.script.begin(), c.script.end(), label); it != std::sregex_iterator(); ++it)
+    boxes.push_back(labelBox((*it)[1], std::stod((*it)[2]) * options.width, (1 - std::stod((*it)[3])) * options.height));
+  for (size_t i = 0; i < boxes.size(); ++i)
+    for (size_t j = i + 1; j < boxes.size(); ++j) EXPECT_FALSE(boxes[i].overlaps(boxes[j])) << i << " " << j << "\n" << c.script;
+  size_t unlabelled = 0;
+  for (const std::string& n : c.notes)
+    if (n.rfind("h not labelled", 0) == 0) unlabelled = static_cast<size_t>(std::count(n.begin(), n.end(), ',')) + 1;
+  EXPECT_GE(boxes.size(), 2u);
+  EXPECT_EQ(boxes.size() + unlabelled, 20u) << c.script;  // two ends a curve
+  rows.erase(rows.begin() + 2);  // the 1/120 point: every curve over 1/30 and 1/60
+  const Chart same = speedOf(rows);
+  EXPECT_NE(same.title.find("h from 1/30 (right) to 1/60 (left)"), std::string::npos) << same.title;
+  EXPECT_EQ(same.script.find("set label 100"), std::string::npos) << same.script;
 }
 
 // `substep compare` end to end on one scene: the sweep's records, the speed chart (a PNG) and the
