@@ -29,9 +29,12 @@ struct AdviseCmdOptions {
 };
 
 // The `substep run` options that give exactly these settings on this scene: the method's own,
-// and every setting where the scene's solver block would otherwise differ.
+// and every setting where the scene's solver block would otherwise differ; a peer's spec as it is.
 std::string runLine(const std::string& scenePathText, const Scene& scene, const lab::Method& m, const SolverSettings& want,
                     double seconds) {
+  if (m.isPeer())  // the peer's own keys are in its spec; run --method takes it as the sweep ran it
+    return "substep run " + scenePathText + " --method " + m.text +
+           (m.overrides.get(&SolverSettings::dt) ? "" : " --dt " + stepText(want.dt)) + " --seconds " + numberText(seconds);
   SolverOverrides cl = m.overrides;
   cl.set(&SolverSettings::dt, want.dt);
   for (int round = 0; round < 3; ++round) {

@@ -95,7 +95,7 @@ std::string errorText(const SceneResult& r, const lab::AtlasCell& c) {
 
 // --- the clips --------------------------------------------------------------------------------
 
-// One panel per cell; the panels are never stepped: the states each run kept (Bullet's too) are drawn.
+// One panel per cell; the panels are never stepped: the states each run kept (the peers' too) are drawn.
 render::RenderSession clipSession(const SceneResult& r, const std::vector<size_t>& cells) {
   using namespace render;
   auto scene = std::make_shared<const Scene>(r.scene);
@@ -103,7 +103,7 @@ render::RenderSession clipSession(const SceneResult& r, const std::vector<size_t
   for (size_t i : cells) {
     const lab::RunResult& run = r.cells[i].run;
     SolverSettings s = run.settings;
-    if (run.method.isBullet()) s = resolve(SolverOverrides{});  // a panel needs substep settings; they are never used
+    if (run.method.isPeer()) s = resolve(SolverOverrides{});  // a panel needs substep settings; they are never used
     setups.push_back({s, run.method.text});
   }
   Look look;
@@ -312,7 +312,7 @@ std::string markdownTable(const std::vector<SceneResult>& results, const std::ve
     m << "| " << lab::sceneName(r.scene) << " |";
     for (const lab::AtlasCell& c : r.cells) {
       std::string fig = c.verdict.figure;
-      if (c.run.refused && !c.run.method.isBullet() && c.run.settings.algorithm == Algorithm::A1)
+      if (c.run.refused && !c.run.method.isPeer() && c.run.settings.algorithm == Algorithm::A1)
         fig = "too large for a1's dense MLCP";  // the refusal in full is on the page
       for (char& ch : fig)
         if (ch == '|') ch = '/';

@@ -6,6 +6,7 @@
 #include "lab/sweep.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 
 namespace substep::app {
@@ -27,7 +28,8 @@ void addChartCommand(CLI::App& app, std::function<int()>& action) {
               "SCENE-convergence where the records hold what each needs. The data and gnuplot scripts are kept in DIR/data/\n"
               "(cd DIR && gnuplot data/NAME.gp redraws one). Needs gnuplot (Debian: gnuplot-nox); $SUBSTEP_GNUPLOT overrides.");
   cmd->add_option("records", opt->input, "A sweep's output (JSONL)")->required();
-  cmd->add_option("-o,--output", opt->output, "The folder the charts are written to")->required();
+  cmd->add_option("-o,--output", opt->output,
+                  "The folder the charts are written to (default: beside the records, named after them: s.jsonl -> s-charts/)");
   cmd->add_option("--error", opt->error, "The quantity drawn as error (default: each scene's, as the records say): one of " + [] {
     std::string s;
     for (const std::string& m : criterionMetrics()) s += (s.empty() ? "" : ", ") + m;
@@ -50,6 +52,10 @@ void addChartCommand(CLI::App& app, std::function<int()>& action) {
         throw UsageError(e.what());
       }
       if (rows.empty()) throw UsageError(opt->input + ": no records to chart");
+      if (opt->output.empty()) {
+        const std::filesystem::path in(opt->input);
+        opt->output = (in.parent_path() / (in.stem().string() + "-charts")).string();
+      }
       lab::ChartOptions co;
       co.error = opt->error;
       const std::vector<std::string> written = writeCharts(rows, co, opt->output, opt->quiet);

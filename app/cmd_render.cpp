@@ -236,7 +236,7 @@ class SessionRecorder {
       : every_(every), last_(static_cast<size_t>(session.panelCount()), -1) {
     std::vector<lab::RecordingPanel> panels;
     for (int i = 0; i < session.panelCount(); ++i)
-      panels.push_back({session.panel(i).name(), settingsJson(session.panel(i).settings()), session.panel(i).name(), false});
+      panels.push_back({session.panel(i).name(), settingsJson(session.panel(i).settings()), session.panel(i).name(), "substep"});
     try {
       writer_ = std::make_unique<RecordingWriter>(path, lab::recordingMeta(session.scene(), panels, every, plannedSteps));
     } catch (const RecordingError& e) {

@@ -1,10 +1,13 @@
 // substep run: steps a scene and writes what happened (trajectory CSV, metrics JSON, a recording,
-// a summary).
+// a summary), under substep's settings or a method spec (--method), a peer engine's too.
 // The stepping is the run driver's (physics/run.h); this file says what to watch and presents it.
 #include "app/commands.h"
 #include "app/common.h"
 #include "app/run_observers.h"
+#include "lab/method.h"
+#include "lab/peers.h"
 #include "lab/record.h"
+#include "lab/runner.h"
 #include "physics/failure.h"
 #include "physics/recording.h"
 #include "physics/settings_json.h"
@@ -28,7 +31,7 @@ struct RunOptions {
   SolverOptions solver;
   std::optional<long long> steps;
   std::optional<double> seconds;
-  std::optional<std::string> trajectory, metrics, record;
+  std::optional<std::string> trajectory, metrics, record, method;
   long long every = 1;
   bool quiet = false;
   SceneLimits limits;
@@ -108,7 +111,7 @@ json metricsJson(const Scene& scene, const World& world, const RunSummary& sum, 
   j["scene"] = scene.file;
   j["algorithm"] = algorithmName(settings.algorithm);
   j["line"] = settingsLine(settings);
-  lab::addReproduction(j, scene, false, settingsJson(settings), planned, o.steps, hashes);
+  lab::addReproduction(j, scene, "substep", settingsJson(settings), planned, o.steps, hashes);
   j["time"] = world.state().time;
   j["finite"] = !o.stepFailed;
   if (o.end == RunOutcome::End::Diverged) j["stopped"] = o.message;
@@ -177,6 +180,108 @@ void printSummary(const Scene& scene, const World& world, const RunSummary& sum,
               << sum.directMethods[3] << " by Gauss-Seidel and polish\n";
 }
 
+
+// --- a peer's run -------------------------------------------------------------------------------
+
+// The one method --method names (a list of values would name several).
+lab::Method oneMethod(const std::string& spec) {
+  std::vector<lab::Method> m;
+  try {
+    m = lab::parseMethods(spec);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--method: ") + e.what());
+  }
+  if (m.size() != 1)
+    throw UsageError("--method " + spec + ": names " + std::to_string(m.size()) +
+                     " methods; run takes one (`substep sweep --methods` runs a list)");
+  return m[0];
+}
+
+// A peer (lab/peers.h) steps the scene under the lab's runner, measured as a sweep measures it; the
+// metrics file is the sweep's record of the run, which `substep rerun` steps again. A scene the
+// peer cannot model is refused with the reason (exit 2), never approximated.
+int runPeer(const RunOptions& o, const Scene& scene, const lab::Method& m) {
+  const std::string engine = lab::peerDisplayName(m.peer);
+  const SolverOverrides commandLine = o.solver.overrides();
+  for (const SettingSpec& s : settingTable())
+    if (commandLine.has(s) && std::string(s.key) != "dt")
+      throw UsageError(std::string("--") + s.flag + " is a setting of substep's algorithms; the " + engine +
+                       " peer takes its own in --method (keys: " + findPeer(m.peer)->keys() + ")");
+  const std::optional<double> dt = commandLine.get(&SolverSettings::dt);
+  if (dt && m.overrides.get(&SolverSettings::dt)) throw UsageError("--dt and --method's h both give the time step; give one");
+  if (o.trajectory)
+    throw UsageError("--trajectory: not written for a peer; --record keeps every body's state at the kept steps");
+  SolverSettings settings;
+  try {
+    settings = lab::methodSettings(m, scene, dt);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--method: ") + e.what());
+  }
+  if (const std::string why = lab::peerUnsupported(m.peer, scene.model, scene.initial); !why.empty())
+    throw UsageError(scene.file + ": no " + engine + " peer for this scene: " + why);
+  const long long planned =
+      o.steps ? *o.steps : static_cast<long long>(std::ceil(o.seconds.value_or(5.0) / settings.dt - 1e-9));
+  const double seconds = static_cast<double>(planned) * settings.dt;
+  std::unique_ptr<AtomicFile> metrics;
+  if (o.metrics) metrics = std::make_unique<AtomicFile>(*o.metrics);
+  if (o.record) checkWritable(*o.record, "--record " + *o.record);
+  std::optional<lab::PreparedReference> reference;
+  if (scene.criteria && scene.criteria->reference) {
+    try {
+      reference = lab::prepareReference(scene, *scene.criteria->reference, seconds);
+    } catch (const std::exception& e) {
+      throw UsageError(scene.file + ": criteria.reference: " + e.what());
+    }
+  }
+  const lab::PeerSettings peer = lab::peerSettings(m, settings);
+  if (!o.quiet)
+    std::cout << "scene     " << scene.file << " (" << scene.model.dynamicCount() << " dynamic bodies, "
+              << scene.model.joints.size() << " joints)\n"
+              << "peer      " << engine << " " << lab::peerVersion(m.peer) << ": " << lab::peerLine(peer) << "\n";
+
+  InterruptGuard interrupt;
+  Progress bar("run", planned, !o.quiet);
+  lab::RunSetup setup;
+  setup.seconds = seconds;
+  setup.reference = reference ? &*reference : nullptr;
+  setup.recording = o.record.value_or("");
+  setup.recordEvery = o.every;
+  setup.stop = [&](const lab::Metrics&, double t) {
+    bar.update(std::llround(t / settings.dt));
+    return InterruptGuard::interrupted() ? std::string(ProgressBar::kInterrupted) : std::string();
+  };
+  const lab::RunResult r = lab::runMethod(scene, m, setup);
+  bar.finish();
+  if (!r.stoppedEarly.empty()) {
+    std::cerr << "substep run: interrupted at step " << r.stepsDone << " of " << planned << "; no output written\n";
+    return kExitInterrupted;
+  }
+  if (r.refused) throw UsageError(scene.file + ": " + r.stopped);  // a peer that gave up mid-run (MuJoCo's buffers)
+  if (metrics) {
+    metrics->out() << lab::recordJson(scene, r, seconds, 1).dump(1) << '\n';
+    metrics->commit();
+  }
+  if (!o.quiet) {
+    const lab::Metrics& x = r.metrics;
+    std::cout << std::fixed << std::setprecision(4) << "stepped   " << r.stepsDone << " steps, " << r.time << " s simulated; "
+              << r.cost.msPerStep << " ms a step\n"
+              << "violation max penetration " << x.penetrationMax * 1e3 << " mm, max joint error "
+              << (x.joints ? x.jointErrorMax * 1e3 : 0.0) << " mm\n"
+              << "energy    " << x.energyStart << " J at the start, " << x.energyEnd << " J at the end\n"
+              << "moved     largest displacement " << x.displacementMax * 1e2 << " cm (" << x.displacementBody << ")\n"
+              << "verdict   " << x.failure.verdict() << "; fastest body " << x.speedMax << " m/s\n";
+    if (!x.referenceText.empty()) std::cout << "reference " << x.referenceText << "\n";
+    if (x.trajectoryError) std::cout << "error     trajectory " << *x.trajectoryError * 1e3 << " mm (largest)\n";
+    if (metrics) std::cout << "wrote     " << *o.metrics << " (substep rerun " << *o.metrics << " runs it again)\n";
+    if (!r.recording.empty()) std::cout << "wrote     " << r.recording << "\n";
+  }
+  if (r.diverged) {
+    std::cerr << "substep run: stopped: " << r.stopped << "; outputs hold the steps before it\n";
+    return kExitNonFinite;
+  }
+  return 0;
+}
+
 }  // namespace
 
 void addRunCommand(CLI::App& app, std::function<int()>& action) {
@@ -198,6 +303,10 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--record", opt->record,
                   "Write a recording (every body, contact and joint at the kept steps; docs/recordings.md) to this file, "
                   "e.g. out/x.rec");
+  cmd->add_option("--method", opt->method,
+                  "A method spec (docs/lab.md): one of substep's algorithms with its settings (a5:n=4:m=1; the "
+                  "options above still win), or a peer engine: bullet:it=10, ode:it=20:step=quick, mujoco:solver=newton; "
+                  "a scene the peer cannot model is refused with the reason (exit 2)");
   cmd->add_flag("--quiet,-q", opt->quiet, "Print nothing but errors (no progress bar either)");
   addMaxBodies(*cmd, opt->limits);
   cmd->callback([opt, &action] {
@@ -212,7 +321,13 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
             throw UsageError(std::string(outputs[i].second) + " and " + outputs[k].second + " name the same file " +
                              **outputs[k].first + "; give each its own");
       const Scene scene = load(opt->scene, opt->limits);
-      const SolverSettings settings = resolveSettings(scene, opt->solver.overrides());
+      SolverOverrides commandLine = opt->solver.overrides();
+      if (opt->method) {
+        const lab::Method m = oneMethod(*opt->method);
+        if (m.isPeer()) return runPeer(*opt, scene, m);
+        commandLine = m.overrides.merged(commandLine);
+      }
+      const SolverSettings settings = resolveSettings(scene, commandLine);
       const long long planned =
           opt->steps ? *opt->steps : static_cast<long long>(std::ceil(opt->seconds.value_or(5.0) / settings.dt - 1e-9));
       std::unique_ptr<AtomicFile> traj, metrics;
@@ -222,7 +337,7 @@ void addRunCommand(CLI::App& app, std::function<int()>& action) {
       if (opt->record) {
         checkWritable(*opt->record, "--record " + *opt->record);
         try {
-          recording.emplace(*opt->record, lab::recordingMeta(scene, {{"", settingsJson(settings), "", false}}, opt->every, planned));
+          recording.emplace(*opt->record, lab::recordingMeta(scene, {{"", settingsJson(settings), "", "substep"}}, opt->every, planned));
         } catch (const RecordingError& e) {
           throw UsageError(std::string("--record: ") + e.what());
         }

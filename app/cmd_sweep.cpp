@@ -2,6 +2,7 @@
 // (lab/record.h) appended to a JSONL file; resumable, shardable, mergeable (docs/lab.md).
 #include "app/commands.h"
 #include "app/common.h"
+#include "app/sweep_command.h"
 #include "lab/record.h"
 #include "lab/sweep.h"
 
@@ -20,18 +21,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-struct SweepOptions {
-  std::string spec;
-  std::vector<std::string> scenes, methods, dts;
-  std::optional<int> repeat;
-  std::optional<double> seconds;
-  std::string output;
-  std::string shard;
-  std::string record;  // a folder for a recording of every run, "" for none
-  bool quiet = false;
-  SceneLimits limits;
-};
 
 struct MergeOptions {
   std::vector<std::string> inputs;
@@ -273,22 +262,6 @@ long long runAll(const lab::SweepPlan& plan, const std::vector<size_t>& todo, in
   return n;
 }
 
-int runSweep(const SweepOptions& o) {
-  const lab::SweepSpec spec = sweepSpec(o);
-  const lab::Shard shard = shardOption(o.shard);
-  const lab::SweepPlan plan = planRuns(spec);
-  const std::set<std::string> done = resume(o.output);
-  RowWriter writer(o.output);
-  if (!o.record.empty()) checkWritable((fs::path(o.record) / "x.rec").string(), "--record " + o.record);
-  const ShardRuns runs = shardRuns(plan, shard, done);
-  if (!o.quiet) printSweepHeader(o, spec, plan, shard, runs);
-  InterruptGuard interrupt;
-  const long long n = runAll(plan, runs.todo, spec.repeat, writer, o);
-  if (!o.quiet)
-    std::cout << "wrote     " << o.output << " (" << n << " new rows)" << (o.record.empty() ? "" : "; recordings in " + o.record)
-              << "\n";
-  return 0;
-}
 
 int runMerge(const MergeOptions& o) {
   std::vector<std::vector<json>> files;
@@ -321,6 +294,23 @@ int runMerge(const MergeOptions& o) {
 }
 
 }  // namespace
+
+int runSweep(const SweepOptions& o) {
+  const lab::SweepSpec spec = sweepSpec(o);
+  const lab::Shard shard = shardOption(o.shard);
+  const lab::SweepPlan plan = planRuns(spec);
+  const std::set<std::string> done = resume(o.output);
+  RowWriter writer(o.output);
+  if (!o.record.empty()) checkWritable((fs::path(o.record) / "x.rec").string(), "--record " + o.record);
+  const ShardRuns runs = shardRuns(plan, shard, done);
+  if (!o.quiet) printSweepHeader(o, spec, plan, shard, runs);
+  InterruptGuard interrupt;
+  const long long n = runAll(plan, runs.todo, spec.repeat, writer, o);
+  if (!o.quiet)
+    std::cout << "wrote     " << o.output << " (" << n << " new rows)" << (o.record.empty() ? "" : "; recordings in " + o.record)
+              << "\n";
+  return 0;
+}
 
 void addSweepCommand(CLI::App& app, std::function<int()>& action) {
   auto opt = std::make_shared<SweepOptions>();

@@ -18,5 +18,6 @@ void addAtlasCommand(CLI::App& app, std::function<int()>& action);
 void addAdviseCommand(CLI::App& app, std::function<int()>& action);
 void addRerunCommand(CLI::App& app, std::function<int()>& action);
 void addSettingsCommand(CLI::App& app, std::function<int()>& action);
+void addCompareCommand(CLI::App& app, std::function<int()>& action);
 
 }  // namespace substep::app

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   addSnapshotCommand(app, action);
   addServeCommand(app, action);
   addSweepCommand(app, action);
+  addCompareCommand(app, action);
   addChartCommand(app, action);
   addAtlasCommand(app, action);
   addAdviseCommand(app, action);

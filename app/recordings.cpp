@@ -18,13 +18,19 @@ OpenedRecording openRecording(Recording r) {
     const nlohmann::json& p = panels[i];
     const std::string where = r.file + ": panels[" + std::to_string(i) + "].settings";
     render::PanelSetup s;
+    const std::string engine = p.value("engine", "substep");
     try {
-      s.settings = resolvedFromJson(p.at("settings"), where);
+      if (engine == "substep") {
+        s.settings = resolvedFromJson(p.at("settings"), where);
+      } else {  // a peer's panel is drawn from its frames, never stepped: substep's defaults at its h
+        s.settings = resolve(SolverOverrides{});
+        s.settings.dt = p.at("settings").at("dt").get<double>();
+      }
     } catch (const std::exception& e) {
       throw RecordingError(RecordingError::Problem::Malformed, e.what());
     }
     s.name = p.value("method", p.value("name", std::string()));
-    if (p.value("engine", "substep") == "bullet") s.name = "bullet" + (s.name.empty() ? "" : " " + s.name);
+    if (engine != "substep" && s.name.rfind(engine, 0) != 0) s.name = engine + (s.name.empty() ? "" : " " + s.name);
     o.panels.push_back(std::move(s));
   }
   for (const auto& f : r.panels)

@@ -88,7 +88,7 @@ double estimatedWork(const Method& m, const Scene& scene) {
     case Algorithm::A5: sweeps = 1.0 * s.substeps * s.iterations; break;
     case Algorithm::Soft: sweeps = 2.0 * s.substeps * s.iterations; break;
   }
-  if (m.isBullet()) sweeps = s.iterations;
+  if (m.isPeer()) sweeps = s.iterations;
   return (3 + sweeps) / s.dt;
 }
 
@@ -153,7 +153,7 @@ FoundReference findConvergedReference(const Scene& scene, double seconds, double
 
 namespace {
 
-// The ladder a candidate stands on: its spec without h, n and m (and Bullet's it), the settings
+// The ladder a candidate stands on: its spec without h, n and m (and a peer's it), the settings
 // along which error falls as work rises ("a5:kappa=1:tau=0.6:warm=off").
 std::string ladderOf(const Method& m) {
   std::string key;
@@ -165,7 +165,7 @@ std::string ladderOf(const Method& m) {
     const size_t eq = part.find('=');
     if (eq != std::string::npos) {
       const std::string name = part.substr(0, eq);
-      const SettingSpec* s = findSetting(m.isBullet() && name == "it" ? "iterations" : name);
+      const SettingSpec* s = findSetting(m.isPeer() && name == "it" ? "iterations" : name);
       const std::string k = s ? s->key : "";
       if (k == "dt" || k == "substeps" || k == "iterations") continue;
     }

@@ -11,7 +11,7 @@
 namespace substep::lab {
 
 const char* defaultAtlasMethods() {
-  return "a1,a2:m=4,a2:m=10,a3:preset=4-medium,a4:preset=4-medium,a5:preset=4-medium,soft,bullet:it=10";
+  return "a1,a2:m=4,a2:m=10,a3:preset=4-medium,a4:preset=4-medium,a5:preset=4-medium,soft,bullet:it=10,ode:it=20,mujoco";
 }
 
 std::vector<std::string> atlasScenes(const std::string& folder) {

@@ -1,4 +1,5 @@
 #include "lab/bullet_peer.h"
+#include "lab/peer_shapes.h"
 
 #include <btBulletDynamicsCommon.h>
 
@@ -88,13 +89,7 @@ std::unique_ptr<btCollisionShape> makeShape(const Shape& s) {
 }  // namespace
 
 std::string bulletUnsupported(const Model& model) {
-  for (const Body& b : model.bodies) {
-    const ShapeType t = b.shape.type;
-    if (t == ShapeType::ConvexMesh || t == ShapeType::TriangleMesh)
-      return "body \"" + b.name + "\" is a " + shapeTypeName(t) +
-             " (the Bullet peer maps spheres, boxes, capsules, cylinders and static planes)";
-    if (t == ShapeType::Plane && !b.isStatic) return "body \"" + b.name + "\" is a dynamic plane";
-  }
+  if (std::string why = unmappedBody(model, "Bullet"); !why.empty()) return why;
   for (const Joint& j : model.joints) {
     if (j.type == JointType::Spring || j.type == JointType::Motor)
       return "joint \"" + j.name + "\" is a " + jointTypeName(j.type) +

@@ -19,12 +19,13 @@ namespace {
 
 using json = nlohmann::json;
 
-const std::vector<std::string> kFamilies = {"a1", "a2", "a3", "a4", "a5", "soft", "bullet"};
+const std::vector<std::string> kFamilies = {"a1", "a2", "a3", "a4", "a5", "soft", "bullet", "ode", "mujoco"};
 
 const char* colour(const std::string& family) {
   static const std::map<std::string, const char*> c = {{"a1", "#1f77b4"}, {"a2", "#ff7f0e"}, {"a3", "#2ca02c"},
                                                         {"a4", "#d62728"}, {"a5", "#9467bd"}, {"soft", "#8c564b"},
-                                                        {"bullet", "#e377c2"}};
+                                                        {"bullet", "#e377c2"}, {"ode", "#17becf"},
+                                                        {"mujoco", "#bcbd22"}};
   const auto it = c.find(family);
   return it == c.end() ? "#7f7f7f" : it->second;
 }
@@ -150,6 +151,14 @@ std::string logTics(const char* axis, double l0, double l1) {
       if (std::log10(v) >= l0 && std::log10(v) <= l1) t += (t.empty() ? "" : ", ") + num(v);
     }
   return t.empty() ? "" : std::string("set ") + axis + " (" + t + ")\n";
+}
+
+// The frame fixed in screen coordinates and the ranges stated, so that labels land where placed.
+std::string frameScript(const Frame& f) {
+  return "unset offsets\nset lmargin at screen " + num(f.plot.x0 / f.width) + "\nset rmargin at screen " + num(f.plot.x1 / f.width) +
+         "\nset tmargin at screen " + num(1 - f.plot.y0 / f.height) + "\nset bmargin at screen " + num(1 - f.plot.y1 / f.height) +
+         "\nset xrange [" + num(std::pow(10, f.lx0)) + ":" + num(std::pow(10, f.lx1)) + "]\nset yrange [" + num(std::pow(10, f.ly0)) +
+         ":" + num(std::pow(10, f.ly1)) + "]\n" + logTics("xtics", f.lx0, f.lx1) + logTics("ytics", f.ly0, f.ly1);
 }
 
 Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::string& metric, const std::string& step, bool mixedSteps,
@@ -310,12 +319,7 @@ Chart paretoChart(const std::string& scene, std::vector<Point> pts, const std::s
              << " left font ',8'\n";
   }
   c.data = data.str();
-  // The frame fixed in screen coordinates and the ranges stated, so the labels land where placed.
-  const std::string frame = "unset offsets\nset lmargin at screen " + num(f.plot.x0 / f.width) + "\nset rmargin at screen " +
-                            num(f.plot.x1 / f.width) + "\nset tmargin at screen " + num(1 - f.plot.y0 / f.height) +
-                            "\nset bmargin at screen " + num(1 - f.plot.y1 / f.height) + "\nset xrange [" + num(std::pow(10, f.lx0)) +
-                            ":" + num(std::pow(10, f.lx1)) + "]\nset yrange [" + num(std::pow(10, f.ly0)) + ":" + num(std::pow(10, f.ly1)) + "]\n" + logTics("xtics", f.lx0, f.lx1) +
-                            logTics("ytics", f.ly0, f.ly1);
+  const std::string frame = frameScript(f);
   std::string noteLabels;
   for (size_t k = 0; k < notes.size(); ++k) noteLabels += noteLabel(static_cast<int>(k), notes[k]);
   c.script = header(c.title, x, yLabel(metric)) + "set logscale xy\n" + frame + noteLabels + labels.str() + plot.str() + "\n";
@@ -469,6 +473,127 @@ bool convergenceChart(const std::string& scene, const std::vector<Point>& pts, c
   return true;
 }
 
+
+// The engine comparison of Erez, Tassa and Todorov (ICRA 2015): error against the real-time factor
+// (simulated seconds per wall-clock second), each method a curve over its time steps. Where every
+// curve runs over the same time steps the title says which end is which; else each end is
+// labelled with its h where the label fits clear of every point, line and other label, and the
+// ends that could not be are named in the chart's notes. Made where some method ran at two time
+// steps or more.
+bool speedChart(const std::string& scene, const std::vector<Point>& pts, const std::string& metric, const ChartOptions& options, Chart& c) {
+  std::map<std::string, std::vector<const Point*>> groups;
+  std::vector<std::string> order;
+  for (const Point& p : pts) {
+    if (p.diverged || !std::isfinite(p.error) || !(p.cost > 0)) continue;
+    const std::string sig = signature(*p.row, {"dt"});
+    if (!groups.count(sig)) order.push_back(sig);
+    groups[sig].push_back(&p);
+  }
+  bool curves = false;
+  for (const auto& [sig, g] : groups) curves = curves || g.size() >= 2;
+  if (!curves) return false;
+  const double floor = logFloor(pts);
+  auto rtf = [](const Point* p) { return 1000 / p->cost; };
+  auto err = [&](const Point* p) { return p->error > 0 ? p->error : floor; };
+  auto hText = [](const Point* p) { return p->row->at("h").get<std::string>(); };
+
+  std::vector<std::string> titles;
+  std::set<std::vector<std::string>> stepSets;
+  double xlo = INFINITY, xhi = 0, ylo = INFINITY, yhi = 0;
+  size_t longest = 0;
+  for (const std::string& sig : order) {
+    std::vector<const Point*>& g = groups[sig];
+    std::sort(g.begin(), g.end(), [](const Point* a, const Point* b) { return a->dt > b->dt; });
+    std::string text = g.front()->row->at("method").get<std::string>();
+    const size_t h = text.find(":h=");
+    if (h != std::string::npos) text.erase(h, text.find(':', h + 1) == std::string::npos ? std::string::npos : text.find(':', h + 1) - h);
+    titles.push_back(text);
+    longest = std::max(longest, text.size());
+    std::vector<std::string> steps;
+    for (const Point* p : g) {
+      steps.push_back(hText(p));
+      xlo = std::min(xlo, rtf(p)), xhi = std::max(xhi, rtf(p)), ylo = std::min(ylo, err(p)), yhi = std::max(yhi, err(p));
+    }
+    stepSets.insert(steps);
+  }
+  // The title can say which end is which when every curve has the same steps, its largest h
+  // rightmost and its smallest leftmost.
+  bool sameSteps = stepSets.size() == 1;
+  for (const auto& [sig, g] : groups)
+    for (const Point* p : g) sameSteps = sameSteps && rtf(g.front()) >= rtf(p) && rtf(g.back()) <= rtf(p);
+
+  Frame f;
+  f.width = options.width;
+  f.height = options.height;
+  // Room on the right for the key, whose entries are the methods' specs.
+  f.plot = {96, 45, f.width - std::max(200.0, 90 + 7.5 * static_cast<double>(longest)), f.height - 62};
+  std::tie(f.lx0, f.lx1) = logRange(xlo, xhi, 2, 2);
+  std::tie(f.ly0, f.ly1) = logRange(ylo, yhi, 2.5, 2.5);
+
+  // The ends' labels, placed clear of every marker and of the lines between them.
+  std::vector<LabelRequest> requests;
+  std::vector<const Point*> requested;
+  std::vector<Box> obstacles;
+  for (const std::string& sig : order) {
+    const std::vector<const Point*>& g = groups[sig];
+    for (size_t k = 0; k < g.size(); ++k) {
+      const double x = f.px(rtf(g[k])), y = f.py(err(g[k]));
+      obstacles.push_back({x - 6, y - 6, x + 6, y + 6});
+      if (k + 1 < g.size()) {
+        const double x1 = f.px(rtf(g[k + 1])), y1 = f.py(err(g[k + 1]));
+        const int n = std::max(1, static_cast<int>(std::hypot(x1 - x, y1 - y) / 4));
+        for (int i = 1; i < n; ++i) {
+          const double t = static_cast<double>(i) / n, sx = x + t * (x1 - x), sy = y + t * (y1 - y);
+          obstacles.push_back({sx - 1.5, sy - 1.5, sx + 1.5, sy + 1.5});
+        }
+      }
+      if (!sameSteps && (k == 0 || k + 1 == g.size())) {
+        requests.push_back({x, y, hText(g[k])});
+        requested.push_back(g[k]);
+      }
+    }
+  }
+  std::ostringstream labels;
+  std::vector<std::string> unlabelled;
+  const std::vector<LabelPlacement> placed = placeLabels(requests, obstacles, f.plot);
+  int tag = 100;
+  for (size_t i = 0; i < placed.size(); ++i) {
+    if (placed[i].kind == LabelPlacement::Kind::Text)
+      labels << "set label " << tag++ << ' ' << gpString(requests[i].text) << " at " << f.screen(placed[i].x, placed[i].y)
+             << " left font ',8' tc rgb '" << colour(requested[i]->family) << "' front\n";
+    else
+      unlabelled.push_back(requested[i]->row->at("method").get<std::string>());
+  }
+
+  std::ostringstream data, plot;
+  std::map<std::string, int> sameFamily;
+  for (size_t index = 0; index < order.size(); ++index) {
+    const std::vector<const Point*>& g = groups[order[index]];
+    for (const Point* p : g) data << num(rtf(p)) << ' ' << num(err(p)) << '\n';
+    data << "\n\n";
+    // A family's second and later curves (mujoco with RK4 beside its Euler) dashed, other points.
+    const int kth = sameFamily[g.front()->family]++;
+    static const int kPoints[] = {7, 5, 9, 11, 13};
+    plot << (index ? ", \\\n     " : "plot ") << "'@DATA@' index " << index << " using 1:2 with linespoints pt " << kPoints[kth % 5]
+         << " ps 1.2 lw 2 dt " << (kth + 1) << " lc rgb '" << colour(g.front()->family) << "' title " << gpString(titles[index]);
+    c.notes.push_back(titles[index] + ": " + std::to_string(g.size()) + (g.size() == 1 ? " time step" : " time steps"));
+  }
+  if (!unlabelled.empty()) {
+    std::string t = "h not labelled (no room clear of the curves) at";
+    for (size_t k = 0; k < unlabelled.size(); ++k) t += (k ? ", " : " ") + unlabelled[k];
+    c.notes.push_back(t);
+  }
+  const std::vector<std::string>& steps = *stepSets.begin();
+  c.name = scene + "-speed";
+  c.title = scene + ": " + metricLabel(metric) + " against the real-time factor, " +
+            (sameSteps && steps.size() >= 2 ? "h from " + steps.front() + " (right) to " + steps.back() + " (left)" : "each method over h");
+  c.data = data.str();
+  c.script = header(c.title, "real-time factor (simulated s per wall-clock s, one core; right and low is better)", yLabel(metric)) +
+             "set logscale xy\nset key outside right top box opaque font ',9'\n" + frameScript(f) + labels.str() +
+             (floor > 0 && std::any_of(pts.begin(), pts.end(), [](const Point& p) { return p.error == 0; }) ? zeroNote(floor) : "") +
+             plot.str() + "\n";
+  return true;
+}
 }  // namespace
 
 std::vector<size_t> paretoFront(const std::vector<std::pair<double, double>>& points) {
@@ -537,6 +662,8 @@ std::vector<Chart> makeCharts(const std::vector<json>& rows, const ChartOptions&
     if (havokChart(scene, pts, metric, c)) charts.push_back(c);
     c = Chart{};
     if (convergenceChart(scene, pts, metric, c)) charts.push_back(c);
+    c = Chart{};
+    if (speedChart(scene, pts, metric, options, c)) charts.push_back(c);
   }
   return charts;
 }

@@ -5,6 +5,8 @@
 //                of 1 iteration against 1 step of n iterations
 //   havok        A3 against A4 against A5: error and cost against n
 //   convergence  error against h, each method's fitted order (slope) in the legend
+//   speed        error against the real-time factor, each method a curve over h (the engine
+//                comparison of Erez, Tassa and Todorov, ICRA 2015; `substep compare`)
 // A chart is made only where the records hold what it needs (docs/lab.md, "Charts").
 #pragma once
 

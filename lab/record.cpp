@@ -1,5 +1,6 @@
 #include "lab/record.h"
 
+#include "lab/peers.h"
 #include "lab/provenance.h"
 #include "physics/recording.h"
 #include "physics/settings_json.h"
@@ -69,8 +70,7 @@ json metricsJson(const Metrics& m) {
 }  // namespace
 
 json recordSettingsJson(const Method& m, const SolverSettings& s) {
-  if (m.isBullet())
-    return {{"dt", s.dt}, {"iterations", s.iterations}, {"gyroscopic", s.gyroscopic == Gyroscopic::None ? "none" : "implicit"}};
+  if (m.isPeer()) return peerSettingsJson(peerSettings(m, s));
   return settingsJson(s);
 }
 
@@ -115,13 +115,13 @@ RunHashes hashesFromJson(const json& j) {
   return h;
 }
 
-void addReproduction(json& j, const Scene& scene, bool bullet, const json& settings, long long steps, long long stepsDone,
+void addReproduction(json& j, const Scene& scene, const std::string& engine, const json& settings, long long steps, long long stepsDone,
                      const RunHashes& hashes) {
   std::error_code ec;
   j["scene_file"] = scene.file;
   j["scene_path"] = std::filesystem::absolute(scene.file, ec).lexically_normal().string();
   j["scene_hash"] = scene.hash;
-  j["engine"] = bullet ? "bullet" : "substep";
+  j["engine"] = engine;
   j["settings"] = settings;
   j["steps"] = steps;
   j["steps_done"] = stepsDone;
@@ -144,7 +144,7 @@ json recordingMeta(const Scene& scene, const std::vector<RecordingPanel>& panels
   j["joints"] = scene.model.joints.size();
   json ps = json::array();
   for (const RecordingPanel& p : panels) {
-    json x = {{"name", p.name}, {"settings", p.settings}, {"engine", p.bullet ? "bullet" : "substep"}};
+    json x = {{"name", p.name}, {"settings", p.settings}, {"engine", p.engine}};
     if (!p.method.empty()) x["method"] = p.method;
     ps.push_back(x);
   }
@@ -153,7 +153,7 @@ json recordingMeta(const Scene& scene, const std::vector<RecordingPanel>& panels
   j["planned_steps"] = plannedSteps;
   j["created_utc"] = utcNow();
   const RecordingPanel first = panels.empty() ? RecordingPanel{} : panels.front();
-  addReproduction(j, scene, first.bullet, first.settings, plannedSteps, 0, RunHashes{});
+  addReproduction(j, scene, first.engine, first.settings, plannedSteps, 0, RunHashes{});
   for (const char* k : {"steps_done", "state_hash", "state_hashes"}) j.erase(k);
   return j;
 }
@@ -199,7 +199,7 @@ json recordJson(const Scene& scene, const RunResult& run, double seconds, int re
   j["method"] = run.method.text;
   j["family"] = run.method.family();
   j["h"] = stepText(run.settings.dt);
-  addReproduction(j, scene, run.method.isBullet(), recordSettingsJson(run.method, run.settings), run.steps, run.stepsDone,
+  addReproduction(j, scene, run.method.isPeer() ? run.method.peer : "substep", recordSettingsJson(run.method, run.settings), run.steps, run.stepsDone,
                   run.hashes);
   j["seconds"] = seconds;
   j["time_s"] = run.time;

@@ -39,13 +39,13 @@ std::string sceneName(const Scene& scene);
 // its absolute path and its content's hash), the engine, every setting, the planned steps and
 // those done, the source commit, the threads a step used, and the state hashes (the last state's
 // as state_hash, the checkpoints under state_hashes).
-void addReproduction(nlohmann::json& record, const Scene& scene, bool bullet, const nlohmann::json& settings,
+void addReproduction(nlohmann::json& record, const Scene& scene, const std::string& engine, const nlohmann::json& settings,
                      long long steps, long long stepsDone, const RunHashes& hashes);
 nlohmann::json hashesJson(const RunHashes& h);
 // Throws std::invalid_argument naming what is missing or malformed.
 RunHashes hashesFromJson(const nlohmann::json& j);
-// The settings a record holds for a method: every resolved setting (the Bullet peer's: dt,
-// iterations, gyroscopic).
+// The settings a record holds for a method: every resolved setting (a peer's: dt, iterations, its
+// gyroscopic term and its own keys, lab/peers.h).
 nlohmann::json recordSettingsJson(const Method& m, const SolverSettings& s);
 
 // One panel of a recording: what it shows (a method's text, or "" for a scene's own settings),
@@ -54,7 +54,7 @@ struct RecordingPanel {
   std::string name;
   nlohmann::json settings;
   std::string method;    // the spec it ran, when a method was given
-  bool bullet = false;
+  std::string engine = "substep";  // or the peer's name: "bullet", "ode", "mujoco"
 };
 // A recording's metadata (docs/recordings.md): the format and version, the scene (its file, the
 // folder its meshes are found from, its text), the model's body and joint counts, the panels,

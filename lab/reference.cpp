@@ -190,7 +190,7 @@ TrajectorySampler sampledRun(const Scene& scene, const SolverSettings& settings,
 ConvergedReference convergedReference(const Scene& scene, const SceneReference& ref, double seconds, double interval,
                                       std::chrono::steady_clock::time_point deadline) {
   const std::vector<Method> m = parseMethods(ref.method);
-  if (m.size() != 1 || m[0].isBullet())
+  if (m.size() != 1 || m[0].isPeer())
     throw ReferenceError("reference \"" + ref.method + "\": expected one of substep's algorithms at a small h");
   const SolverSettings coarse = methodSettings(m[0], scene, m[0].overrides.get(&SolverSettings::dt));
   SolverSettings fine = coarse;

@@ -1,6 +1,6 @@
 #include "lab/rerun.h"
 
-#include "lab/bullet_peer.h"
+#include "lab/peers.h"
 #include "lab/provenance.h"
 #include "lab/record.h"
 #include "physics/run.h"
@@ -159,15 +159,20 @@ RerunReport rerunRecord(const json& r, const std::string& where, const std::func
       engine = std::make_unique<WorldEngine>(*world);
       dt = s.dt;
       line = settingsLine(s, LineDetail::Brief);
-    } else if (engineName == "bullet") {
-      if (!settings.contains("dt") || !settings.contains("iterations") || !settings.contains("gyroscopic"))
-        throw Incomplete(where + ": settings: the Bullet peer's need dt, iterations and gyroscopic");
-      dt = settings["dt"].get<double>();
-      engine = std::make_unique<BulletEngine>(scene.model, scene.initial, dt, settings["iterations"].get<int>(),
-                                              settings["gyroscopic"].get<std::string>() != "none");
-      line = "bullet it=" + std::to_string(settings["iterations"].get<int>());
+    } else if (findPeer(engineName)) {
+      PeerSettings p;
+      try {
+        p = peerSettingsFromJson(engineName, settings, where + ": settings");
+      } catch (const std::invalid_argument& e) {
+        throw Incomplete(e.what());
+      }
+      dt = p.dt;
+      const std::string why = peerUnsupported(engineName, scene.model, scene.initial);
+      if (!why.empty()) throw Incomplete(where + ": no " + peerDisplayName(engineName) + " peer for the scene: " + why);
+      engine = makePeerEngine(p, scene.model, scene.initial);
+      line = peerLine(p);
     } else {
-      throw Incomplete(where + ": engine \"" + engineName + "\": expected substep or bullet");
+      throw Incomplete(where + ": engine \"" + engineName + "\": expected substep, bullet, ode or mujoco");
     }
 
     // A refused record is re-run to its refusal: the same step must refuse again.

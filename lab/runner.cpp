@@ -1,6 +1,6 @@
 #include "lab/runner.h"
 
-#include "lab/bullet_peer.h"
+#include "lab/peers.h"
 #include "lab/record.h"
 #include "physics/recording.h"
 
@@ -49,19 +49,18 @@ class StopWhen final : public RunObserver {
   const Probe& probe_;
 };
 
-// The engine the method steps: substep's World, or the Bullet peer.
+// The engine the method steps: substep's World, or a peer.
 struct MethodEngine {
   std::unique_ptr<World> world;
   std::unique_ptr<WorldEngine> worldEngine;
-  std::unique_ptr<BulletEngine> bullet;
-  Engine& engine() { return bullet ? static_cast<Engine&>(*bullet) : *worldEngine; }
+  std::unique_ptr<Engine> peer;
+  Engine& engine() { return peer ? *peer : static_cast<Engine&>(*worldEngine); }
 };
 
 MethodEngine makeEngine(const Scene& scene, const RunResult& r) {
   MethodEngine m;  // built outside the timed steps
-  if (r.method.isBullet()) {
-    m.bullet = std::make_unique<BulletEngine>(scene.model, scene.initial, r.settings.dt, r.settings.iterations,
-                                              r.settings.gyroscopic != Gyroscopic::None);
+  if (r.method.isPeer()) {
+    m.peer = makePeerEngine(peerSettings(r.method, r.settings), scene.model, scene.initial);
   } else {
     m.world = std::make_unique<World>(scene.model, r.settings, scene.initial);
     m.worldEngine = std::make_unique<WorldEngine>(*m.world);
@@ -72,7 +71,15 @@ MethodEngine makeEngine(const Scene& scene, const RunResult& r) {
 // The first pass is observed (metrics, frames, state hashes, the stop callback); the later ones
 // time the same steps (`stepsDone` of the first) with nothing watching.
 Pass runPass(const Scene& scene, RunResult& r, const RunSetup& setup, Probe* probe) {
-  MethodEngine m = makeEngine(scene, r);
+  MethodEngine m;
+  try {
+    m = makeEngine(scene, r);
+  } catch (const std::exception& e) {  // a peer that will not take what peerUnsupported() let through
+    if (!r.method.isPeer()) throw;
+    r.refused = true;
+    r.stopped = "no " + peerDisplayName(r.method.peer) + " peer for this scene: " + e.what();
+    return Pass{};
+  }
   RunDriver run(m.engine(), probe ? r.steps : r.stepsDone);
   Frames frames(setup.frameRate, r.frames);
   StateHashes hashes(scene.model, r.steps);
@@ -83,7 +90,7 @@ Pass runPass(const Scene& scene, RunResult& r, const RunSetup& setup, Probe* pro
     stopWhen.emplace(setup, *probe);
     run.add(*probe).add(frames).add(hashes).add(*stopWhen);
     if (!setup.recording.empty()) {
-      const RecordingPanel panel{r.method.text, recordSettingsJson(r.method, r.settings), r.method.text, r.method.isBullet()};
+      const RecordingPanel panel{r.method.text, recordSettingsJson(r.method, r.settings), r.method.text, r.method.isPeer() ? r.method.peer : "substep"};
       writer.emplace(setup.recording, recordingMeta(scene, {panel}, setup.recordEvery, r.steps));
       recorder.emplace(*writer, scene.model, 0, setup.recordEvery, r.steps);
       run.add(*recorder);
@@ -129,11 +136,11 @@ RunResult runMethod(const Scene& scene, const Method& method, const RunSetup& se
   r.method = method;
   r.settings = methodSettings(method, scene, setup.dt);  // throws std::invalid_argument
   r.steps = static_cast<long long>(std::ceil(setup.seconds / r.settings.dt - 1e-9));
-  if (method.isBullet()) {
-    const std::string why = bulletUnsupported(scene.model);
+  if (method.isPeer()) {
+    const std::string why = peerUnsupported(method.peer, scene.model, scene.initial);
     if (!why.empty()) {
       r.refused = true;
-      r.stopped = "no Bullet peer for this scene: " + why;
+      r.stopped = "no " + peerDisplayName(method.peer) + " peer for this scene: " + why;
       return r;
     }
   } else {

@@ -2,6 +2,7 @@
 
 #include "physics/utf8.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -265,6 +266,87 @@ const std::vector<SettingSpec>& settingTable() {
   return table;
 }
 
+namespace {
+
+// The peers' own keys (PeerSpec::own): a row of the table's shape with no field, read by no
+// algorithm. The defaults are each engine's own.
+SettingSpec ownKey(const char* key, SettingKind kind, Range range, std::vector<std::string> choices, const char* line,
+                   const char* help, double value) {
+  return SettingSpec{key, "", "", kind, range, std::move(choices), kNone, SettingOrigin::Extension, line, kNone, help,
+                     std::monostate{}, same(value), {}};
+}
+
+std::vector<PeerSpec> makePeerTable() {
+  using K = SettingKind;
+  std::vector<PeerSpec> t = {
+      {kBulletPeer, "Bullet", "Bullet 3 (btDiscreteDynamicsWorld, sequential impulses)", {"dt", "iterations", "gyroscopic"}, 10, {}},
+      {kOdePeer,
+       "ODE",
+       "ODE 0.16 (QuickStep or dWorldStep)",
+       {"dt", "iterations", "gyroscopic"},
+       20,
+       {ownKey("sor", K::Real, {0, 2, true, false}, {}, "sor=%s", "ode: QuickStep's over-relaxation w (ODE's default 1.3)",
+               1.3),
+        ownKey("step", K::Choice, {0, 0}, {"quick", "big"}, "step=%s",
+               "ode: quick (dWorldQuickStep, iterative) or big (dWorldStep, ODE's direct LCP solve)", 0),
+        ownKey("erp", K::Real, {0, 1}, {}, "erp=%s", "ode: error reduction parameter of joints and contacts (ODE's 0.2)",
+               0.2),
+        ownKey("cfm", K::Real, {0, 1}, {}, "cfm=%s", "ode: constraint force mixing of joints and contacts (ODE's 1e-10)",
+               1e-10),
+        ownKey("layer", K::Real, {0, 1}, {}, "layer=%s",
+               "ode: contact surface layer, the depth contacts are left [m]; substep's slop, 1 mm (ODE's own 0 drops a "
+               "resting box's contacts each time they reach depth 0, and it falls again)",
+               0.001)}},
+      {kMujocoPeer,
+       "MuJoCo",
+       "MuJoCo 2.2 (soft contacts, generalized coordinates)",
+       {"dt", "iterations"},
+       100,
+       {ownKey("solver", K::Choice, {0, 0}, {"newton", "cg", "pgs"}, "solver=%s", "mujoco: constraint solver (MuJoCo's newton)",
+               0),
+        ownKey("integrator", K::Choice, {0, 0}, {"euler", "rk4", "implicit"}, "integrator=%s",
+               "mujoco: euler (semi-implicit, MuJoCo's default), rk4 or implicit (in velocity)", 0),
+        ownKey("cone", K::Choice, {0, 0}, {"pyramidal", "elliptic"}, "cone=%s", "mujoco: friction cone (MuJoCo's pyramidal)",
+               0),
+        ownKey("margin", K::Real, {0, 0.1}, {}, "margin=%s",
+               "mujoco: distance within which contacts are found [m]; they act from touching on (gap = margin), so "
+               "that bodies exactly touching at the start hold",
+               0.001)}},
+  };
+  for (PeerSpec& p : t)
+    for (size_t i = 0; i < p.own.size(); ++i) p.own[i].index = i;
+  return t;
+}
+
+}  // namespace
+
+const std::vector<PeerSpec>& peerTable() {
+  static const std::vector<PeerSpec> table = makePeerTable();
+  return table;
+}
+
+const PeerSpec* findPeer(const std::string& name) {
+  for (const PeerSpec& p : peerTable())
+    if (name == p.name) return &p;
+  return nullptr;
+}
+
+const SettingSpec* PeerSpec::findOwn(const std::string& key) const {
+  for (const SettingSpec& s : own)
+    if (key == s.key) return &s;
+  return nullptr;
+}
+
+std::string PeerSpec::keys(const char* last) const {
+  std::vector<std::string> k = {"h", "it"};
+  for (const std::string& t : tableKeys)
+    if (t == "gyroscopic") k.push_back("gyro");
+  for (const SettingSpec& o : own) k.push_back(o.key);
+  std::string s;
+  for (size_t i = 0; i < k.size(); ++i) s += (i == 0 ? "" : i + 1 == k.size() ? last : ", ") + k[i];
+  return s;
+}
+
 const SettingSpec* findSetting(const std::string& name) {
   for (const SettingSpec& s : settingTable())
     if (name == s.key || (s.alias[0] && name == s.alias) || name == s.flag) return &s;
@@ -517,15 +599,19 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
   const std::vector<std::string> parts = split(spec, ":;");
   const std::string algo = trim(parts[0]);
   const std::optional<Algorithm> a = parseAlgorithm(algo);
-  const bool bullet = algo == kBulletPeer;
-  if (!a && !bullet)
+  const PeerSpec* peer = a ? nullptr : findPeer(algo);
+  if (!a && !peer) {
+    std::string peers;
+    for (const PeerSpec& p : peerTable()) peers += (peers.empty() ? "" : ", ") + std::string(p.name);
     throw std::invalid_argument(quoted(spec) + ": unknown algorithm " + quoted(algo) +
-                                "; a method starts with one of a1, a2, a3, a4, a5, soft, or the peer bullet" + usage);
+                                "; a method starts with one of a1, a2, a3, a4, a5, soft, or a peer (" + peers + ")" + usage);
+  }
   // Each key=value (or key=v1|v2|...), checked, in order.
   struct Axis {
     const SettingSpec* setting;
     std::string key;
     std::vector<std::string> values;
+    bool own = false;  // a peer's own key
   };
   std::vector<Axis> axes;
   size_t combinations = 1;
@@ -535,13 +621,14 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
     if (eq == std::string::npos || eq == 0)
       throw std::invalid_argument(quoted(spec) + ": expected key=value, got " + quoted(kv) + usage);
     const std::string key = trim(kv.substr(0, eq));
-    const SettingSpec* s = findSetting(bullet && key == "it" ? "iterations" : key);
+    const SettingSpec* own = peer ? peer->findOwn(key) : nullptr;
+    const SettingSpec* s = own ? own : findSetting(peer && key == "it" ? "iterations" : key);
     if (!s || std::string(s->key) == "algorithm")
       throw std::invalid_argument(quoted(spec) + ": unknown key " + quoted(key) + " (keys: " +
-                                  (bullet ? std::string("h, it, gyro") : settingKeys()) + ")");
+                                  (peer ? peer->keys() : settingKeys()) + ")");
     const std::string k = s->key;
-    if (bullet && k != "dt" && k != "iterations" && k != "gyroscopic")
-      throw std::invalid_argument(quoted(spec) + ": the Bullet peer takes h, it and gyro; " + key +
+    if (peer && !own && std::find(peer->tableKeys.begin(), peer->tableKeys.end(), k) == peer->tableKeys.end())
+      throw std::invalid_argument(quoted(spec) + ": the " + peer->engine + " peer takes " + peer->keys(" and ") + "; " + key +
                                   " is a setting of substep's algorithms");
     if (a && !s->takes.has(*a)) {
       try {
@@ -552,7 +639,7 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
     }
     for (const Axis& x : axes)
       if (x.setting == s) throw std::invalid_argument(quoted(spec) + ": " + key + " is given twice");
-    Axis axis{s, key, {}};
+    Axis axis{s, key, {}, own != nullptr};
     for (const std::string& v : split(kv.substr(eq + 1), "|")) {
       const std::string value = trim(v);
       try {
@@ -572,9 +659,12 @@ std::vector<MethodSpec> expandMethodSpec(const std::string& raw) {
     MethodSpec m;
     m.text = algo;
     if (a) m.overrides.set(&SolverSettings::algorithm, *a);
-    if (bullet) m.peer = kBulletPeer;
+    if (peer) m.peer = peer->name;
     for (size_t k = 0; k < axes.size(); ++k) {
-      m.overrides.setText(*axes[k].setting, axes[k].values[at[k]]);
+      if (axes[k].own)
+        m.peerOptions[axes[k].setting->key] = axes[k].setting->parse(axes[k].values[at[k]]);
+      else
+        m.overrides.setText(*axes[k].setting, axes[k].values[at[k]]);
       m.text += ":" + axes[k].key + "=" + axes[k].values[at[k]];
     }
     out.push_back(m);

@@ -15,6 +15,7 @@
 #include <array>
 #include <bitset>
 #include <initializer_list>
+#include <map>
 #include <optional>
 #include <string>
 #include <type_traits>
@@ -268,16 +269,37 @@ void checkTakes(const SettingSpec& s, Algorithm a);
 // (or ';'). A value may be a list a|b|c: the spec then names the grid of every combination.
 // Real values may be written as fractions: h=1/120.
 //
-// A spec may also name a peer engine instead of an algorithm: `bullet:it=10:h=1/60` is Bullet 3
-// stepping the same scene (the lab's peer, lab/bullet_peer.h), with the settings it maps: h (dt),
-// it (or m, iterations: its solver iterations) and gyro (its gyroscopic term). The peer itself is
-// the lab's business; the spec language is the same for every method.
+// A spec may also name a peer engine instead of an algorithm: `bullet:it=10:h=1/60` is Bullet 3,
+// `ode:it=20:sor=1.3` ODE, `mujoco:solver=newton` MuJoCo, stepping the same scene (the lab's
+// peers, lab/peers.h). A peer takes h (the table's dt) and it (the table's iterations: its solver
+// iterations), some gyro (the table's gyroscopic), and keys of its own (peerTable()). The peers
+// themselves are the lab's business; the spec language is the same for every method.
+struct PeerSpec {
+  const char* name;                   // "ode": what a spec starts with
+  const char* engine;                 // "ODE": the engine's own name, for messages
+  const char* title;                  // "ODE 0.16 (QuickStep or dWorldStep)"
+  std::vector<std::string> tableKeys;  // keys of the settings table it maps: "dt", "iterations", "gyroscopic"
+  int iterations;                     // its `it` when a spec does not give it
+  std::vector<SettingSpec> own;       // its own keys: ranges, choices, defaults (same for every
+                                      // algorithm column) and help; no SolverSettings field
+  const SettingSpec* findOwn(const std::string& key) const;  // null if not its own
+  std::string keys(const char* last = ", ") const;  // "h, it, gyro, sor, ...", or with last = " and ": "h, it and gyro"
+};
+const std::vector<PeerSpec>& peerTable();
+const PeerSpec* findPeer(const std::string& name);  // null if none
+inline constexpr const char* kBulletPeer = "bullet";
+inline constexpr const char* kOdePeer = "ode";
+inline constexpr const char* kMujocoPeer = "mujoco";
+
+// A peer's own settings, by key (PeerSpec::own), each held as a table value: a choice its index.
+using PeerOptions = std::map<std::string, double>;
+
 struct MethodSpec {
   std::string text;            // as written (one combination: the lists resolved)
   SolverOverrides overrides;   // the algorithm and the settings it names (a peer: no algorithm)
-  std::string peer;            // "" for substep's algorithms, "bullet" for the Bullet peer
+  std::string peer;            // "" for substep's algorithms, else the peer's name ("bullet")
+  PeerOptions peerOptions;     // a peer's own keys the spec gives
 };
-inline constexpr const char* kBulletPeer = "bullet";
 // One spec; with value lists, every combination in order (the last key varies fastest).
 // Throws std::invalid_argument naming the spec, the key and what was expected.
 std::vector<MethodSpec> expandMethodSpec(const std::string& spec);

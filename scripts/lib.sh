@@ -11,7 +11,7 @@ SUBSTEP_PACKAGES=(
   libeigen3-dev libfcl-dev libccd-dev libassimp-dev
   libosmesa6-dev libstb-dev libturbojpeg0-dev fonts-dejavu-core
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libcpp-httplib-dev
-  libdart-external-odelcpsolver-dev libbullet-dev libxxhash-dev
+  libdart-external-odelcpsolver-dev libbullet-dev libode-dev libmujoco-dev libxxhash-dev
   ffmpeg gnuplot-nox parallel
   dpkg-dev file jq slurm-wlm munge
 )

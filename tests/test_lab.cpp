@@ -395,7 +395,7 @@ TEST(Charts, EveryChartFromTheRecordsItNeeds) {
   const std::vector<Chart> charts = makeCharts(rows, ChartOptions{});
   std::vector<std::string> names;
   for (const Chart& c : charts) names.push_back(c.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"c-pareto", "c-substeps", "c-havok", "c-convergence"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"c-pareto", "c-substeps", "c-havok", "c-convergence", "c-speed"}));
   EXPECT_NE(charts[0].script.find("title \"a5\""), std::string::npos);
   EXPECT_NE(charts[0].script.find("Pareto front"), std::string::npos);
   EXPECT_NE(charts[0].script.find("set ylabel \"max joint error [m]\""), std::string::npos);

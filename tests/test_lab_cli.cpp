@@ -141,12 +141,13 @@ TEST(Chart, EveryKindDrawnFromASweep) {
   ASSERT_EQ(rows(d / "s.jsonl").size(), 12u);
   const Outcome c = run("chart " + (d / "s.jsonl").string() + " -o " + (d / "charts").string());
   ASSERT_EQ(c.status, 0) << c.output;
-  EXPECT_NE(c.output.find("wrote     8 files"), std::string::npos) << c.output;
+  EXPECT_NE(c.output.find("wrote     10 files"), std::string::npos) << c.output;
   expectChart(d / "charts" / "pendulum_chain-pareto.png", {"a1", "a2", "a3", "a5", "bullet", "Pareto front"});
   expectChart(d / "charts" / "pendulum_chain-substeps.png",
               {"a2: 1 step of n iterations", "a3: n sub-steps of 1 iteration", "a5: n sub-steps of 1 iteration"});
   expectChart(d / "charts" / "pendulum_chain-havok.png", {"a3", "a5"});
   expectChart(d / "charts" / "pendulum_chain-convergence.png", {});
+  expectChart(d / "charts" / "pendulum_chain-speed.png", {});  // a1's curve over its two h
   EXPECT_NE(c.output.find("a1 (slope "), std::string::npos) << c.output;  // the fitted order, printed
   for (const char* kind : {"pareto", "substeps", "havok", "convergence"}) {
     EXPECT_GT(fs::file_size(d / "charts" / "data" / ("pendulum_chain-" + std::string(kind) + ".dat")), 0u) << kind;

@@ -52,7 +52,7 @@ Recorded recordRun(const Scene& sc, long long steps, long long every, const fs::
   Collect collect;
   Recorded out;
   {
-    RecordingWriter w(file.string(), lab::recordingMeta(sc, {{"", settingsJson(settings), "", false}}, every, steps));
+    RecordingWriter w(file.string(), lab::recordingMeta(sc, {{"", settingsJson(settings), "", "substep"}}, every, steps));
     RecordingObserver rec(w, sc.model, 0, every, steps);
     run.add(collect).add(rec);
     EXPECT_EQ(run.run().end, RunOutcome::End::Planned);
@@ -317,7 +317,7 @@ TEST(Recording, AbsurdCountsAreRefusedAsTooLarge) {
 TEST(Recording, WriterLeavesNoTemporary) {
   const fs::path dir = scratch();
   const Scene sc = scene("stack");
-  const json meta = lab::recordingMeta(sc, {{"", json::object(), "", false}}, 1, 1);
+  const json meta = lab::recordingMeta(sc, {{"", json::object(), "", "substep"}}, 1, 1);
   {
     RecordingWriter w((dir / "a.rec").string(), meta);
     w.add(0, takeSnapshot(sc.model, sc.initial));

@@ -272,7 +272,37 @@ TEST(MethodSpecs, TheBulletPeerTakesItsOwnSettings) {
       << errorOf("bullet:kappa=0.9");
   EXPECT_NE(errorOf("bullet:frob=1").find("unknown key \"frob\" (keys: h, it, gyro)"), std::string::npos);
   EXPECT_NE(errorOf("a5:it=4").find("unknown key \"it\""), std::string::npos);  // "it" is Bullet's word
-  EXPECT_NE(errorOf("ode").find("or the peer bullet"), std::string::npos);
+  EXPECT_NE(errorOf("havok").find("or a peer (bullet, ode, mujoco)"), std::string::npos) << errorOf("havok");
+}
+
+// ODE and MuJoCo take h and it as Bullet does, and keys of their own, checked as the table's.
+TEST(MethodSpecs, OdeAndMujocoTakeTheirOwnKeys) {
+  const auto ode = parseMethodSpecs("ode:it=20:sor=1|1.3:step=big:erp=0.5:cfm=1e-5");
+  ASSERT_EQ(ode.size(), 2u);
+  EXPECT_EQ(ode[1].peer, "ode");
+  EXPECT_EQ(ode[1].text, "ode:it=20:sor=1.3:step=big:erp=0.5:cfm=1e-5");
+  EXPECT_EQ(*ode[1].overrides.get(&SolverSettings::iterations), 20);
+  EXPECT_DOUBLE_EQ(ode[0].peerOptions.at("sor"), 1);
+  EXPECT_DOUBLE_EQ(ode[1].peerOptions.at("sor"), 1.3);
+  EXPECT_DOUBLE_EQ(ode[1].peerOptions.at("step"), 1);  // big: the choice's index
+  EXPECT_EQ(ode[1].peerOptions.count("layer"), 0u);    // given keys only; the lab fills the defaults
+  const auto mj = expandMethodSpec("mujoco:solver=pgs:integrator=rk4:cone=elliptic:margin=0.002:h=1/240");
+  ASSERT_EQ(mj.size(), 1u);
+  EXPECT_EQ(mj[0].peer, "mujoco");
+  EXPECT_DOUBLE_EQ(mj[0].peerOptions.at("solver"), 2);
+  EXPECT_DOUBLE_EQ(mj[0].peerOptions.at("margin"), 0.002);
+  EXPECT_DOUBLE_EQ(*mj[0].overrides.get(&SolverSettings::dt), 1.0 / 240);
+  EXPECT_NE(errorOf("ode:sor=3").find("sor: expected a number in (0, 2], got \"3\""), std::string::npos) << errorOf("ode:sor=3");
+  EXPECT_NE(errorOf("ode:step=slow").find("expected one of quick, big"), std::string::npos);
+  EXPECT_NE(errorOf("mujoco:gyro=none").find("the MuJoCo peer takes h, it, solver, integrator, cone and margin; gyro"),
+            std::string::npos)
+      << errorOf("mujoco:gyro=none");
+  EXPECT_NE(errorOf("mujoco:sor=1").find("unknown key \"sor\" (keys: h, it, solver, integrator, cone, margin)"),
+            std::string::npos)
+      << errorOf("mujoco:sor=1");
+  EXPECT_NE(errorOf("ode:kappa=1").find("the ODE peer takes h, it, gyro, sor, step, erp, cfm and layer; kappa"),
+            std::string::npos)
+      << errorOf("ode:kappa=1");
 }
 
 TEST(Presets, HavoksThreeStiffnesses) {

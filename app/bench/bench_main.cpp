@@ -1,7 +1,7 @@
 // substep-bench: how fast each algorithm steps the benchmark scenes, where the time goes
 // (s1 geometry, s2 formulation, s3 velocities, s4 coordinates), and what the speed buys
-// (contact points, how far the bodies moved), next to Bullet stepping the same scene in the same
-// process. See docs/benchmarks.md.
+// (contact points, how far the bodies moved), next to the peers (Bullet, ODE, MuJoCo: lab/peers.h)
+// stepping the same scene in the same process. See docs/benchmarks.md.
 //
 // Method: for each repeat, each scene and each case, a fresh World (or Bullet world) is built
 // from the scene's initial state outside the timed loop, then stepped N times; every call of
@@ -16,6 +16,8 @@
 // displacement from the start (after 1 s and at the end), the fastest body, the joints' anchor
 // separation and how far joint angles are beyond their limits (physics/constraints/joints.h).
 #include "lab/bullet_peer.h"
+#include "lab/method.h"
+#include "lab/peers.h"
 #include "lab/chart.h"
 #include "lab/provenance.h"
 #include "app/common.h"
@@ -53,7 +55,6 @@
 namespace substep::bench {
 namespace {
 
-using lab::bulletUnsupported;
 using lab::bulletVersion;
 using lab::cpuModel;
 using lab::loadAverage;
@@ -71,19 +72,23 @@ using app::UsageError;
 
 // --- the cases --------------------------------------------------------------------------------
 
-enum class EngineKind { Substep, Bullet };
+enum class EngineKind { Substep, Peer };
 
 struct Case {
   const char* id;          // its name for --algos
   const char* label;       // its name in the table
   const char* spec;        // the method (physics/settings.h); the scene gives only the time step
   bool byDefault;          // run when --algos is not given
-  EngineKind engine() const { return std::string(spec).rfind(kBulletPeer, 0) == 0 ? EngineKind::Bullet : EngineKind::Substep; }
+  EngineKind engine() const { return peer().empty() ? EngineKind::Substep : EngineKind::Peer; }
+  std::string peer() const { return expandMethodSpec(spec).at(0).peer; }  // "" for substep's
   // Its settings at the scene's h: the method's own over the algorithm's defaults, so that the
   // scene's solver block cannot change what a case means.
   SolverSettings settings(double dt) const {
     SolverOverrides o = expandMethodSpec(spec).at(0).overrides;
-    if (engine() == EngineKind::Bullet) o.set(&SolverSettings::algorithm, Algorithm::A2);  // n stays 1
+    if (engine() == EngineKind::Peer) {
+      o.set(&SolverSettings::algorithm, Algorithm::A2);  // n stays 1
+      o.set(&SolverSettings::gyroscopic, Gyroscopic::Implicit);  // Bullet's and ODE's own term, on
+    }
     o.set(&SolverSettings::dt, dt);
     return resolve(o);
   }
@@ -103,6 +108,8 @@ const std::vector<Case>& allCases() {
       {"a5-stack", "a5 pyramid.json", "a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", true},
       {"soft", "soft (n=4)", "soft:n=4:m=1", true},
       {"bullet", "bullet (10 it)", "bullet:it=10", true},
+      {"ode", "ode (quick, 20 it)", "ode:it=20", true},
+      {"mujoco", "mujoco (newton)", "mujoco:it=100", true},
   };
   return list;
 }
@@ -171,8 +178,8 @@ class StepTimes final : public RunObserver {
 Run runCase(const Scene& scene, const Case& c, const SolverSettings& settings, int steps, std::vector<double>& stepTimes) {
   std::unique_ptr<World> world;
   std::unique_ptr<Engine> engine;
-  if (c.engine() == EngineKind::Bullet) {
-    engine = std::make_unique<lab::BulletEngine>(scene.model, scene.initial, settings.dt, settings.iterations, true);
+  if (c.engine() == EngineKind::Peer) {
+    engine = lab::makePeerEngine(lab::peerSettings(lab::parseMethods(c.spec).at(0), settings), scene.model, scene.initial);
   } else {
     world = std::make_unique<World>(scene.model, settings, scene.initial);
     engine = std::make_unique<WorldEngine>(*world);
@@ -183,8 +190,10 @@ Run runCase(const Scene& scene, const Case& c, const SolverSettings& settings, i
   const RunOutcome& o = run.run();
   Run r;
   r.stepsDone = static_cast<int>(o.steps);
-  r.finite = o.end != RunOutcome::End::Diverged;
-  r.problem = o.message;
+  // A peer that gives up mid-run (MuJoCo's contact buffers full) is no time to compare: said as a
+  // divergence is, never a figure.
+  r.finite = o.end != RunOutcome::End::Diverged && o.end != RunOutcome::End::Refused;
+  r.problem = o.end == RunOutcome::End::Refused ? "refused: " + o.message : o.message;
   r.moved1s = times.moved1s;
   const double n = std::max(1, r.stepsDone);
   for (int k = 0; k < r.stepsDone; ++k) {
@@ -198,8 +207,10 @@ Run runCase(const Scene& scene, const Case& c, const SolverSettings& settings, i
     r.contacts = world->lastReport().contactPoints;
     r.solverIterations = world->lastReport().solver.iterations;
     r.rows = world->lastReport().solver.rows;
-  } else {
+  } else if (c.peer() == kBulletPeer) {
     r.contacts = static_cast<const lab::BulletEngine&>(*engine).peer().contactPoints();
+  } else {  // ODE and MuJoCo keep no contacts between steps: the points penetrating at the end
+    r.contacts = engine->depths().points;
   }
   measureEnd(r, scene, engine->state());
   return r;
@@ -676,10 +687,11 @@ std::optional<Result> planCase(const Scene& scene, size_t index, const std::stri
     }
     return r;
   }
-  const std::string why = bulletUnsupported(scene.model);
+  const std::string engine = lab::peerDisplayName(c->peer());
+  const std::string why = lab::peerUnsupported(c->peer(), scene.model, scene.initial);
   if (!why.empty()) {
-    std::cout << "substep-bench: no Bullet peer for " << name << ", Bullet skipped there: " << why << "\n";
-    skipped.push_back(name + ": " + why);
+    std::cout << "substep-bench: no " << engine << " peer for " << name << ", " << engine << " skipped there: " << why << "\n";
+    skipped.push_back(name + " (" + engine + "): " + why);
     return std::nullopt;
   }
   r.settings.dt = dt;
@@ -718,7 +730,8 @@ struct TimedRuns {
 std::string printHeader(const Options& opt, const std::vector<Result>& results) {
   std::cout << "substep-bench  " << utcNow() << "  " << cpuModel() << ", " << std::thread::hardware_concurrency()
             << " hardware threads, single-threaded runs; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
-            << bulletVersion() << "; load average " << loadAverage() << "\n";
+            << bulletVersion() << ", ODE " << lab::peerVersion(kOdePeer) << ", MuJoCo " << lab::peerVersion(kMujocoPeer)
+            << "; load average " << loadAverage() << "\n";
   const std::string source = sourceState();
   std::cout << "source " << source << " (as git sees the tree now; the build may be older)\n";
   std::cout << opt.steps << " steps of dt = " << fmt("%.6g", results.empty() ? 0.0 : results[0].settings.dt)
@@ -765,7 +778,7 @@ bool aggregate(std::vector<Result>& results) {
   }
   for (Result& r : results)
     for (const Result& b : results)
-      if (b.scene == r.scene && b.c->engine() == EngineKind::Bullet && b.median.total > 0)
+      if (b.scene == r.scene && b.c->peer() == kBulletPeer && b.median.total > 0 && r.median.finite)
         r.ratio = r.median.total / b.median.total;
   return allFinite;
 }
@@ -783,7 +796,7 @@ void printNotes(const BenchPlan& plan, const TimedRuns& t) {
                "centre from where it started (after 1 s, and at the end; dropped scenes: mostly the fall). max v:\n"
                "fastest body. joint err: largest anchor separation; limit over: largest angle beyond a hinge, swing\n"
                "or twist limit; both by our definitions, for Bullet too.\n";
-  for (const std::string& s : plan.skipped) std::cout << "No Bullet peer for " << s << "\n";
+  for (const std::string& s : plan.skipped) std::cout << "No peer for " << s << "\n";
   std::cout << "Timed runs took " << fmt("%.1f", t.wall) << " s; load average before " << t.loadBefore << ", after "
             << t.loadAfter << ".\n";
 }
@@ -796,7 +809,7 @@ void printWarnings(const std::vector<Result>& results, bool allFinite) {
       if (!r.repeatable) std::cout << "  " << r.scene << " " << r.c->label << "\n";
   }
   if (!allFinite) {
-    std::cout << "WARNING: some runs diverged (NaN@k: at step k):\n";
+    std::cout << "WARNING: some runs diverged or were refused (NaN@k: at step k):\n";
     for (const Result& r : results)
       if (!r.median.finite) std::cout << "  " << r.scene << " " << r.c->label << ": " << r.median.problem << "\n";
   }
@@ -809,13 +822,13 @@ nlohmann::json resultJson(const Result& r) {
   j["scene"] = r.scene;
   j["case"] = r.c->id;
   j["label"] = r.c->label;
-  j["engine"] = r.c->engine() == EngineKind::Substep ? "substep" : "bullet";
+  j["engine"] = r.c->engine() == EngineKind::Substep ? std::string("substep") : r.c->peer();
   j["method"] = r.c->spec;
   if (r.c->engine() == EngineKind::Substep) {
     j["settings"] = settingsJson(r.settings);
     j["solver_last_step"] = {{"iterations", r.median.solverIterations}, {"rows", r.median.rows}};
   } else {
-    j["settings"] = {{"dt", r.settings.dt}, {"iterations", r.settings.iterations}, {"sleeping", false}};
+    j["settings"] = lab::peerSettingsJson(lab::peerSettings(lab::parseMethods(r.c->spec).at(0), r.settings));
   }
   j["vs_bullet"] = std::isnan(r.ratio) ? nlohmann::json(nullptr) : nlohmann::json(r.ratio);
   j["spread"] = spread(r);
@@ -850,6 +863,8 @@ nlohmann::json benchJson(const Options& opt, const BenchPlan& plan, const TimedR
   doc["build_type"] = SUBSTEP_BUILD_TYPE;
   doc["source"] = t.source;
   doc["bullet_version"] = bulletVersion();
+  doc["ode_version"] = lab::peerVersion(kOdePeer);
+  doc["mujoco_version"] = lab::peerVersion(kMujocoPeer);
   doc["load_average"] = {{"before", t.loadBefore}, {"after", t.loadAfter}};
   doc["timed_wall_s"] = t.wall;
   doc["command"] = opt.command;

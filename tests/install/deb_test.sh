@@ -27,7 +27,7 @@ echo "$(basename "$deb"): $(du -h "$deb" | cut -f1)"
 dpkg-deb --field "$deb" Package Version Architecture Depends Recommends | tee "$work/fields.txt"
 depends=$(dpkg-deb --field "$deb" Depends)
 # shlibdeps: the libraries the ELF files need, with versions, beside the font.
-for dep in libc6 'libstdc\+\+6' libosmesa6 'libassimp' 'libfcl' 'libbullet' 'libturbojpeg' fonts-dejavu-core; do
+for dep in libc6 'libstdc\+\+6' libosmesa6 'libassimp' 'libfcl' 'libbullet' 'libode' 'libmujoco' 'libturbojpeg' fonts-dejavu-core; do
   grep -Eq "(^|, )$dep" <<<"$depends" || fail "Depends lacks $dep: $depends"
 done
 
