@@ -262,25 +262,10 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
   int passes = 0;
   // Beyond what the cheapest that met could lose to: its measured cost may be off from the
   // estimate by 1.5x once two met, 3x while one has.
-  auto ruledOut = [&](double work) {
-    return (passes >= 2 && work > 1.5 * cheapestPassWork) || (passes == 1 && work > 3 * cheapestPassWork);
+  auto ruledOut = [&](double w) {
+    return (passes >= 2 && w > 1.5 * cheapestPassWork) || (passes == 1 && w > 3 * cheapestPassWork);
   };
-  // The two cheapest that met so far, by the cost of their first run.
   std::vector<double> wall;  // [s] of each run tried
-  auto rank = [&] {
-    a.best = a.runnerUp = -1;
-    for (size_t i = 0; i < a.tried.size(); ++i) {
-      const Candidate& c = a.tried[i];
-      if (!c.meets) continue;
-      const int k = static_cast<int>(i);
-      if (a.best < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.best)].run.msPerSecond()) {
-        a.runnerUp = a.best;
-        a.best = k;
-      } else if (a.runnerUp < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.runnerUp)].run.msPerSecond()) {
-        a.runnerUp = k;
-      }
-    }
-  };
   for (;;) {
     if ((o.maxRuns > 0 && static_cast<int>(a.tried.size()) >= o.maxRuns) || o.budgetUsed + elapsed() >= o.timeBudget) {
       for (size_t r : order.left(ruledOut)) a.notRun.push_back(candidates[r]);
@@ -352,12 +337,22 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
     order.report(index, c.meets);
     a.tried.push_back(std::move(c));
     wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - ran).count());
-    rank();
     if (progress) progress(a.tried.size(), candidates.size(), a.tried.back());
   }
-  // The two cheapest that met, timed again whole (median of the repeats, no observer stopping
-  // them), ranked again by that cost; with fewer repeats (one at least) where the budget left
-  // has no room for them all.
+  // The two cheapest that met, by the cost of their run ...
+  for (size_t i = 0; i < a.tried.size(); ++i) {
+    const Candidate& c = a.tried[i];
+    if (!c.meets) continue;
+    const int k = static_cast<int>(i);
+    if (a.best < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.best)].run.msPerSecond()) {
+      a.runnerUp = a.best;
+      a.best = k;
+    } else if (a.runnerUp < 0 || c.run.msPerSecond() < a.tried[static_cast<size_t>(a.runnerUp)].run.msPerSecond()) {
+      a.runnerUp = k;
+    }
+  }
+  // ... timed again whole (median of the repeats, no observer stopping them) and ranked again by
+  // that cost; with fewer repeats (one at least) where the budget left has no room for them all.
   for (int k : {a.best, a.runnerUp}) {
     if (k < 0 || o.repeat < 1) continue;
     Candidate& c = a.tried[static_cast<size_t>(k)];

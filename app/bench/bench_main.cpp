@@ -121,8 +121,9 @@ struct Run {
   double total = 0;         // mean wall time of one step() call [s]
   double worst = 0;         // slowest single step [s]
   int stepsDone = 0;
-  bool finite = true;
-  std::string problem;      // when not finite: what the World said diverged
+  bool finite = true;       // false: it diverged
+  bool refused = false;     // a peer gave up mid-run (MuJoCo's contact buffers full): no time to compare
+  std::string problem;      // then: what the World said diverged, or why the peer gave up
   int contacts = 0;         // contact points at the last step
   double moved = 0;         // largest displacement of a dynamic body from its start [m]
   int movedBody = -1;       // which body
@@ -190,10 +191,11 @@ Run runCase(const Scene& scene, const Case& c, const SolverSettings& settings, i
   const RunOutcome& o = run.run();
   Run r;
   r.stepsDone = static_cast<int>(o.steps);
-  // A peer that gives up mid-run (MuJoCo's contact buffers full) is no time to compare: said as a
-  // divergence is, never a figure.
-  r.finite = o.end != RunOutcome::End::Diverged && o.end != RunOutcome::End::Refused;
-  r.problem = o.end == RunOutcome::End::Refused ? "refused: " + o.message : o.message;
+  // A peer that gives up mid-run (MuJoCo's contact buffers full) is no time to compare: said with
+  // its reason, never a figure; what a peer cannot model is no failure of the bench.
+  r.finite = o.end != RunOutcome::End::Diverged;
+  r.refused = o.end == RunOutcome::End::Refused;
+  r.problem = r.refused ? "refused: " + o.message : o.message;
   r.moved1s = times.moved1s;
   const double n = std::max(1, r.stepsDone);
   for (int k = 0; k < r.stepsDone; ++k) {
@@ -352,9 +354,10 @@ void printTimeTable(const std::vector<Result>& results, std::ostream& out) {
     const bool ours = r.c->engine() == EngineKind::Substep;
     auto stage = [&](double s) { return ours ? fmt("%7.3f", s * 1e3) : std::string("      -"); };
     const std::string vs = std::isnan(r.ratio) ? "-" : fmt("%.2fx", r.ratio);
-    std::snprintf(line, sizeof line, "%-12s %-15s %s %s %s %s %9.3f %7.1f %9s\n", r.scene.c_str(), r.c->label,
+    const std::string total = m.refused ? "refused" : fmt("%.3f", m.total * 1e3);
+    std::snprintf(line, sizeof line, "%-12s %-15s %s %s %s %s %9s %7.1f %9s\n", r.scene.c_str(), r.c->label,
                   stage(m.stages.s1).c_str(), stage(m.stages.s2).c_str(), stage(m.stages.s3).c_str(),
-                  stage(m.stages.s4).c_str(), m.total * 1e3, 100 * spread(r), vs.c_str());
+                  stage(m.stages.s4).c_str(), total.c_str(), 100 * spread(r), vs.c_str());
     out << line;
   }
 }
@@ -373,6 +376,7 @@ void printEndTable(const std::vector<Result>& results, int steps, std::ostream& 
     const Model* model = r.model;
     std::string moved = fmt("%.4f", m.moved);
     if (!m.finite) moved = "NaN@" + std::to_string(m.stepsDone);
+    if (m.refused) moved = "refused@" + std::to_string(m.stepsDone);
     const std::string moved1s = std::isnan(m.moved1s) ? "-" : fmt("%.4f", m.moved1s);
     const bool joints = !model->joints.empty();
     const std::string err = joints ? fmt("%.2f", m.jointError * 1e3) : "-";
@@ -439,6 +443,7 @@ nlohmann::json runJson(const Run& r, const Model& model) {
           {"worst_step_ms", r.worst * 1e3},
           {"steps_done", r.stepsDone},
           {"finite", r.finite},
+          {"refused", r.refused},
           {"problem", r.problem},
           {"contact_points", r.contacts},
           {"moved_1s_m", number(r.moved1s)},
@@ -530,7 +535,7 @@ ScalingRun scalingRunInChild(const Case& c, int boxes, int steps) {
       const Scene scene = parseScene(pileSceneText(boxes), "pile", ".", lim);
       std::vector<double> times(static_cast<size_t>(steps));
       Run r = runCase(scene, c, c.settings(1.0 / 60.0), steps, times);
-      const double out[3] = {r.total, static_cast<double>(r.contacts), r.finite ? 1.0 : 0.0};
+      const double out[3] = {r.total, static_cast<double>(r.contacts), r.finite && !r.refused ? 1.0 : 0.0};
       const ssize_t w = write(fd[1], out, sizeof out);
       _exit(w == static_cast<ssize_t>(sizeof out) ? 0 : 1);
     } catch (const std::exception& e) {
@@ -778,7 +783,7 @@ bool aggregate(std::vector<Result>& results) {
   }
   for (Result& r : results)
     for (const Result& b : results)
-      if (b.scene == r.scene && b.c->peer() == kBulletPeer && b.median.total > 0 && r.median.finite)
+      if (b.scene == r.scene && b.c->peer() == kBulletPeer && b.median.total > 0 && r.median.finite && !r.median.refused)
         r.ratio = r.median.total / b.median.total;
   return allFinite;
 }
@@ -809,10 +814,14 @@ void printWarnings(const std::vector<Result>& results, bool allFinite) {
       if (!r.repeatable) std::cout << "  " << r.scene << " " << r.c->label << "\n";
   }
   if (!allFinite) {
-    std::cout << "WARNING: some runs diverged or were refused (NaN@k: at step k):\n";
+    std::cout << "WARNING: some runs diverged (NaN@k: at step k):\n";
     for (const Result& r : results)
       if (!r.median.finite) std::cout << "  " << r.scene << " " << r.c->label << ": " << r.median.problem << "\n";
   }
+  for (const Result& r : results)
+    if (r.median.refused)
+      std::cout << "Refused mid-run (refused@k: at step k; a peer's limit, not timed): " << r.scene << " " << r.c->label << ": "
+                << r.median.problem << "\n";
 }
 
 // --- the JSON ---------------------------------------------------------------------------------
