@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -14,6 +15,7 @@
 #include <filesystem>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 #ifndef SUBSTEP_SOURCE_DIR
 #define SUBSTEP_SOURCE_DIR "."
@@ -87,6 +89,14 @@ SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& cl) {
     if (s && cl.has(*s)) throw UsageError("--" + std::string(s->flag) + what.substr(what.find(':')));
     throw UsageError("solver settings (" + scene.file + " or the command line): " + what);
   }
+}
+
+SolverOverrides onEveryCore(const Scene& scene, SolverOverrides given) {
+  const SettingSpec& threads = settingOf(&SolverSettings::threads);
+  if (scene.solver.has(threads) || given.has(threads)) return given;
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  given.set(threads, std::min<double>(cores, limits::kMaxThreads));
+  return given;
 }
 
 Scene load(const std::string& path, const SceneLimits& lim) {

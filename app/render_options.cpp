@@ -134,7 +134,7 @@ Look RenderOptions::look(const Scene& scene, bool stepCost) const {
 }
 
 std::vector<PanelSetup> RenderOptions::panelSetups(const Scene& scene) const {
-  const SolverOverrides common = solver.overrides();
+  const SolverOverrides common = onEveryCore(scene, solver.overrides());
   if (panels.empty() && panelsOption_ && panelsOption_->count() > 0)
     throw UsageError(panelsOption_->get_name() + ": expected 2 to 4 settings, e.g. a2:m=4,a5:n=4, got nothing");
   if (panels.empty()) return {{resolveSettings(scene, common), ""}};

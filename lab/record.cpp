@@ -127,7 +127,8 @@ void addReproduction(json& j, const Scene& scene, const std::string& engine, con
   j["steps_done"] = stepsDone;
   j["commit"] = sourceCommit();
   j["source"] = sourceState();
-  j["threads"] = kStepThreads;
+  // The threads the steps ran on (a peer's: one); the trajectory does not depend on it.
+  j["threads"] = settings.is_object() && settings.contains("threads") ? settings["threads"] : json(1);
   j["state_hash"] = hashText(hashes.last);
   j["state_hashes"] = hashesJson(hashes);
 }

@@ -51,12 +51,14 @@ inline constexpr Range kScale{1e-3, 1e3};                       // mesh and ragd
 
 // Totals. Bodies and joints are capped so that a typing error (a 400-level pyramid, 80 200
 // boxes) is a message rather than minutes of stepping; `--max-bodies` raises the cap.
-inline constexpr int kDefaultMaxBodies = 10000;
+inline constexpr int kDefaultMaxBodies = 20000;      // the 10 000-box pile and its ground fit
 inline constexpr int kMaxBodiesCeiling = 1000000;               // what --max-bodies accepts
 // Broadphase pairs per body beyond which a step stops: 20 000 bodies started inside each other
 // would otherwise make 2e8 pairs. A settled pile has about 6 per box, a ragdoll pile 10.
 inline constexpr int kMaxPairsPerBody = 64;
 inline constexpr int kMinPairCap = 4096;
+// Threads a step may run on (SolverSettings::threads).
+inline constexpr int kMaxThreads = 256;
 
 // Files and text.
 inline constexpr size_t kMaxSceneBytes = 64u << 20;             // a scene file [bytes]

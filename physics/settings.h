@@ -115,6 +115,8 @@ struct SolverSettings {
   double jointDamping;            // soft: damping ratio ζ
   double pushOut;                 // soft: largest push-out speed [m/s]
   bool sleep;                      // islands at rest for half a second stop stepping until woken
+  int threads;                    // threads a step runs on (results do not depend on it)
+  bool colours;                   // soft: contacts solved colour by colour, the colours over the threads
   int directMaxRows;              // A1: largest MLCP it forms densely [rows]
   double directWorkBudget;        // A1: floating-point operations per step (mlcp_direct.h)
 };

@@ -142,6 +142,12 @@ void World::setSettings(const SolverSettings& settings) {
         "split_impulse: a1 solves position error in its MLCP's bias; split impulse is an option of a2-a5 (turn it off "
         "or choose --algo a2)");
   if (settings.algorithm != settings_.algorithm) stepper_ = makeStepper(settings.algorithm);
+  if (!pool_ || pool_->threads() != settings.threads) {
+    pool_ = std::make_unique<WorkerPool>(settings.threads);
+    narrowphases_.resize(static_cast<size_t>(settings.threads));
+    ctx_.pool = pool_.get();
+    constraints_.setPool(pool_.get());
+  }
   settings_ = settings;
   const size_t nb = model_.bodies.size();
   // The pseudo-velocities are one step's (splitPositionErrors writes them, s4 adds them): a
@@ -176,41 +182,90 @@ bool World::geometry() {
                       " per body): bodies start inside each other, or the scene has collapsed into one heap";
     return false;
   }
-  manifolds_.beginStep();
-  report_.cachedPairs = 0;
+  manifolds_.beginStep(true);
   frames_.resize(state_.bodies.size());
   for (size_t i = 0; i < state_.bodies.size(); ++i) frames_[i] = state_.bodies[i].pose();
-  ContactPatch patch;
-  for (const auto& [i, j] : pairs_) {
-    // A plane or triangle mesh is always B, so the normal points out of it.
-    const bool swap = isSurface(model_.bodies[static_cast<size_t>(i)].shape.type);
-    const int a = swap ? j : i, b = swap ? i : j;
-    const Body& A = model_.bodies[static_cast<size_t>(a)];
-    const Body& B = model_.bodies[static_cast<size_t>(b)];
-    const Pose pA = state_.bodies[static_cast<size_t>(a)].pose();
-    const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
-    // A pair that has barely moved relative to itself since its points were found keeps them; a
-    // pair of which neither body moves (static or asleep) keeps them too, for when it wakes.
-    const Manifold* old = manifolds_.previous(a, b);
-    if (old && ((!asleep_.empty() && dormant(a) && dormant(b)) || pairShiftBelow(*old, pA, pB, kPairCacheShift))) {
-      manifolds_.reuse(*old, frames_[static_cast<size_t>(a)], frames_[static_cast<size_t>(b)]);
-      ++report_.cachedPairs;
-      continue;
-    }
-    // The gap the pair can close: relative motion, in which gravity cancels unless one is static
-    // (bodies falling side by side never meet, however fast they fall).
-    const double fallRel = A.isStatic == B.isStatic ? 0.0 : fall.norm();
-    const double gapLimit = reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)] +
-                            (move_[static_cast<size_t>(a)] - move_[static_cast<size_t>(b)]).norm() + fallRel;
-    narrowphase_.collide(A.shape, broadphase_.shape(a), pA, B.shape, broadphase_.shape(b), pB, gapLimit, patch);
-    if (patch.count == 0) continue;
-    // How far from its origin a point of B can be: B's size, or for a surface the distance of A's
-    // far side from B's origin.
-    const double rA = A.shape.boundingRadius();
-    const double rB = isSurface(B.shape.type) ? (pA.p - pB.p).norm() + rA : B.shape.boundingRadius();
-    manifolds_.add(a, b, pA, pB, std::sqrt(A.friction * B.friction), std::max(A.restitution, B.restitution), patch,
-                   rB);
+  // A plane or triangle mesh is always B, so the normal points out of it; last step's manifold
+  // of each pair is found by a merge, in pair order.
+  const size_t np = pairs_.size();
+  olds_.resize(np);
+  for (size_t k = 0; k < np; ++k) {
+    auto& [i, j] = pairs_[k];
+    if (isSurface(model_.bodies[static_cast<size_t>(i)].shape.type)) std::swap(i, j);
+    olds_[k] = manifolds_.previous(i, j);
   }
+  // Each pair's manifold on the step's threads, a block of pairs at a time into the block's own
+  // list; the lists are then taken in block order, so the manifolds and the ids of new points
+  // are the same for any number of threads.
+  constexpr size_t kPairBlock = 64;
+  const size_t blocks = (np + kPairBlock - 1) / kPairBlock;
+  if (blockManifolds_.size() < blocks) blockManifolds_.resize(blocks);
+  blockCached_.assign(blocks, 0);
+  blockNew_.assign(blocks, 0);
+  pool_->forBlocks(blocks, [&](size_t blk, int thread) {
+    std::vector<Manifold>& out = blockManifolds_[blk];
+    out.clear();
+    int cached = 0, fresh = 0;
+    ContactPatch patch;
+    for (size_t k = blk * kPairBlock; k < std::min(np, (blk + 1) * kPairBlock); ++k) {
+      const int a = pairs_[k].first, b = pairs_[k].second;
+      const Body& A = model_.bodies[static_cast<size_t>(a)];
+      const Body& B = model_.bodies[static_cast<size_t>(b)];
+      const Pose pA = state_.bodies[static_cast<size_t>(a)].pose();
+      const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
+      // A pair that has barely moved relative to itself since its points were found keeps them; a
+      // pair of which neither body moves (static or asleep) keeps them too, for when it wakes.
+      const Manifold* old = olds_[k];
+      if (old && ((!asleep_.empty() && dormant(a) && dormant(b)) || pairShiftBelow(*old, pA, pB, kPairCacheShift))) {
+        out.emplace_back();
+        ManifoldCache::kept(out.back(), *old, frames_[static_cast<size_t>(a)], frames_[static_cast<size_t>(b)]);
+        ++cached;
+        continue;
+      }
+      // The gap the pair can close: relative motion, in which gravity cancels unless one is static
+      // (bodies falling side by side never meet, however fast they fall).
+      const double fallRel = A.isStatic == B.isStatic ? 0.0 : fall.norm();
+      const double gapLimit = reach_[static_cast<size_t>(a)] + reach_[static_cast<size_t>(b)] +
+                              (move_[static_cast<size_t>(a)] - move_[static_cast<size_t>(b)]).norm() + fallRel;
+      narrowphases_[static_cast<size_t>(thread)].collide(A.shape, broadphase_.shape(a), pA, B.shape,
+                                                         broadphase_.shape(b), pB, gapLimit, patch);
+      if (patch.count == 0) continue;
+      // How far from its origin a point of B can be: B's size, or for a surface the distance of A's
+      // far side from B's origin.
+      const double rA = A.shape.boundingRadius();
+      const double rB = isSurface(B.shape.type) ? (pA.p - pB.p).norm() + rA : B.shape.boundingRadius();
+      out.emplace_back();
+      ManifoldCache::made(out.back(), a, b, pA, pB, std::sqrt(A.friction * B.friction),
+                          std::max(A.restitution, B.restitution), patch, rB, old);
+      for (int p = 0; p < out.back().count; ++p) fresh += out.back().points[p].id == 0;
+    }
+    blockCached_[blk] = cached;  // once: threads counting into neighbouring slots would share a cache line
+    blockNew_[blk] = fresh;
+  });
+  // Where each block's manifolds go and the id its first new point takes; then placed.
+  blockAt_.resize(blocks + 1);
+  blockId_.resize(blocks);
+  blockAt_[0] = 0;
+  uint32_t newPoints = 0;
+  report_.cachedPairs = 0;
+  for (size_t blk = 0; blk < blocks; ++blk) {
+    blockAt_[blk + 1] = blockAt_[blk] + blockManifolds_[blk].size();
+    blockId_[blk] = newPoints;
+    newPoints += static_cast<uint32_t>(blockNew_[blk]);
+    report_.cachedPairs += blockCached_[blk];
+  }
+  const uint32_t firstId = manifolds_.claimIds(newPoints);
+  std::vector<Manifold>& placed = manifolds_.place(blockAt_[blocks]);
+  pool_->forBlocks(blocks, [&](size_t blk, int) {
+    uint32_t id = firstId + blockId_[blk];
+    Manifold* to = placed.data() + blockAt_[blk];
+    for (const Manifold& m : blockManifolds_[blk]) {
+      *to = m;
+      for (int p = 0; p < to->count; ++p)
+        if (to->points[p].id == 0) to->points[p].id = id++;
+      ++to;
+    }
+  });
   report_.pairs = static_cast<int>(pairs_.size());
   report_.manifolds = static_cast<int>(manifolds_.manifolds().size());
   int points = 0;

@@ -12,6 +12,7 @@
 #include "physics/collision/raycast.h"
 #include "physics/constraints/constraint_set.h"
 #include "physics/model.h"
+#include "physics/parallel.h"
 #include "physics/settings.h"
 #include "physics/state.h"
 #include "physics/steppers/stepper.h"
@@ -41,9 +42,6 @@ constexpr double kMaxSpeed = 1e6;       // [m/s] and [rad/s]
 struct Refused : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
-
-// The threads a step uses: one, for now (records carry it).
-inline constexpr int kStepThreads = 1;
 
 struct StepReport {
   bool finite = true;    // false: the step stopped: the state diverged (non-finite or beyond the
@@ -119,12 +117,18 @@ class World {
   SolverSettings settings_;
   State state_;
   Broadphase broadphase_;
-  Narrowphase narrowphase_;
+  std::unique_ptr<WorkerPool> pool_;       // settings_.threads
+  std::vector<Narrowphase> narrowphases_;  // one per thread
   ManifoldCache manifolds_;
   ConstraintSet constraints_;
   std::unique_ptr<Stepper> stepper_;
   StepContext ctx_;
-  std::vector<std::pair<int, int>> pairs_;
+  std::vector<std::pair<int, int>> pairs_;       // this step's, (A, B) as the manifold has them
+  std::vector<const Manifold*> olds_;            // per pair: last step's manifold, or null
+  std::vector<std::vector<Manifold>> blockManifolds_;  // s1's manifolds by block of pairs
+  std::vector<int> blockCached_, blockNew_;      // ... how many of each block were kept, its new points
+  std::vector<size_t> blockAt_;                  // ... where each block's go in the step's list
+  std::vector<uint32_t> blockId_;                // ... the id of each block's first new point, from the step's first
   std::vector<double> reach_;  // per body: how far turning moves a point this step, plus half the margin [m]
   std::vector<Vec3> move_;     // per body: h v, its free-flight move this step without gravity [m]
   std::vector<Vec3> approachV_;  // per body: the velocity restitution measures approach speeds with

@@ -48,11 +48,11 @@ TEST(SettingTable, EveryFieldOnceWithAFlagAndHelp) {
   // field breaks its count), and the table holds as many resolved rows.
   SolverSettings st;
   auto& [algorithm, dt, n, m, omega, tol, kappa, tau, slop, warm, block, cblock, split, motor, friction, spec, rest,
-         threshold, islands, jacobians, gyro, order, frame, ch, cd, jh, jd, push, sleep, rows, budget] = st;
-  const size_t bound = 31;
+         threshold, islands, jacobians, gyro, order, frame, ch, cd, jh, jd, push, sleep, threads, colours, rows, budget] = st;
+  const size_t bound = 33;
   (void)algorithm, (void)dt, (void)n, (void)m, (void)omega, (void)tol, (void)kappa, (void)tau, (void)slop, (void)warm;
   (void)block, (void)cblock, (void)split, (void)motor, (void)friction, (void)spec, (void)rest, (void)threshold;
-  (void)islands, (void)jacobians, (void)gyro, (void)order, (void)frame, (void)ch, (void)cd, (void)jh, (void)jd, (void)push, (void)sleep, (void)rows, (void)budget;
+  (void)islands, (void)jacobians, (void)gyro, (void)order, (void)frame, (void)ch, (void)cd, (void)jh, (void)jd, (void)push, (void)sleep, (void)threads, (void)colours, (void)rows, (void)budget;
   size_t resolvedRows = 0;
   for (const SettingSpec& s : settingTable()) resolvedRows += s.resolved();
   EXPECT_EQ(resolvedRows, bound);

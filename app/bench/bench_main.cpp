@@ -27,6 +27,7 @@
 #include "physics/settings_json.h"
 #include "physics/failure.h"
 #include "physics/run.h"
+#include "physics/state_hash.h"
 #include "physics/world.h"
 
 #include <CLI/CLI.hpp>
@@ -107,6 +108,7 @@ const std::vector<Case>& allCases() {
       {"a5", "a5 (n=4 m=1)", "a5:n=4:m=1", true},
       {"a5-stack", "a5 pyramid.json", "a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", true},
       {"soft", "soft (n=4)", "soft:n=4:m=1", true},
+      {"soft-colours", "soft colours", "soft:n=4:m=1:colours=on", false},
       {"bullet", "bullet (10 it)", "bullet:it=10", true},
       {"ode", "ode (quick, 20 it)", "ode:it=20", true},
       {"mujoco", "mujoco (newton)", "mujoco:it=100", true},
@@ -134,6 +136,7 @@ struct Run {
   double limitExcess = 0;   // largest angle beyond a joint limit (hinge, swing, twist) at the end [rad]
   double hingeExcess = 0, swingExcess = 0, twistExcess = 0;  // the same per kind of limit [rad]
   int solverIterations = 0, rows = 0;  // substep only: the last step's solver statistics
+  uint64_t endHash = 0;     // the state's hash at the end (physics/state_hash.h)
 };
 
 // What the run's end state looks like, by our definitions for both engines: displacement, the
@@ -215,6 +218,7 @@ Run runCase(const Scene& scene, const Case& c, const SolverSettings& settings, i
     r.contacts = engine->depths().points;
   }
   measureEnd(r, scene, engine->state());
+  r.endHash = stateHash(engine->state());
   return r;
 }
 
@@ -230,6 +234,8 @@ struct Result {
   const Model* model = nullptr;
   bool repeatable = true;    // contacts, displacement, speed and joint errors the same in every repeat
   double ratio = NAN;        // median total / Bullet's median total on the same scene
+  int threads = 1;           // substep cases: the threads a step ran on (--threads runs each case twice)
+  std::string label() const { return threads == 1 ? c->label : std::string(c->label) + " x" + std::to_string(threads); }
 };
 
 Run medianRun(std::vector<Run> runs) {
@@ -292,9 +298,9 @@ std::string ratioText(const Ratio& q) {
   return fmt("%.2fx", q.median) + " (" + fmt("%.2f", q.lo) + "-" + fmt("%.2f", q.hi) + ")";
 }
 
-const Result* find(const std::vector<Result>& results, const std::string& scene, const char* caseId) {
+const Result* find(const std::vector<Result>& results, const std::string& scene, const char* caseId, int threads = 1) {
   for (const Result& r : results)
-    if (r.scene == scene && std::string(r.c->id) == caseId) return &r;
+    if (r.scene == scene && std::string(r.c->id) == caseId && r.threads == threads) return &r;
   return nullptr;
 }
 
@@ -355,7 +361,7 @@ void printTimeTable(const std::vector<Result>& results, std::ostream& out) {
     auto stage = [&](double s) { return ours ? fmt("%7.3f", s * 1e3) : std::string("      -"); };
     const std::string vs = std::isnan(r.ratio) ? "-" : fmt("%.2fx", r.ratio);
     const std::string total = m.refused ? "refused" : fmt("%.3f", m.total * 1e3);
-    std::snprintf(line, sizeof line, "%-12s %-15s %s %s %s %s %9s %7.1f %9s\n", r.scene.c_str(), r.c->label,
+    std::snprintf(line, sizeof line, "%-12s %-15s %s %s %s %s %9s %7.1f %9s\n", r.scene.c_str(), r.label().c_str(),
                   stage(m.stages.s1).c_str(), stage(m.stages.s2).c_str(), stage(m.stages.s3).c_str(),
                   stage(m.stages.s4).c_str(), total.c_str(), 100 * spread(r), vs.c_str());
     out << line;
@@ -382,7 +388,7 @@ void printEndTable(const std::vector<Result>& results, int steps, std::ostream& 
     const std::string err = joints ? fmt("%.2f", m.jointError * 1e3) : "-";
     const std::string over = joints ? fmt("%.1f", m.limitExcess * kDegreesPerRadian) : "-";
     const std::string who = m.movedBody >= 0 ? model->bodies[static_cast<size_t>(m.movedBody)].name : "-";
-    std::snprintf(line, sizeof line, "%-12s %-15s %8d %9s %9s %8.3f %8s %8s  %s%s\n", r.scene.c_str(), r.c->label,
+    std::snprintf(line, sizeof line, "%-12s %-15s %8d %9s %9s %8.3f %8s %8s  %s%s\n", r.scene.c_str(), r.label().c_str(),
                   m.contacts, moved1s.c_str(), moved.c_str(), m.maxSpeed, err.c_str(), over.c_str(), who.c_str(),
                   r.repeatable ? "" : "  (differs between repeats)");
     out << line;
@@ -422,13 +428,93 @@ void printGoal(const std::vector<Comparison>& comps, std::ostream& out) {
   }
 }
 
+// --threads N: each substep case on N threads against itself on one, run for run, and whether
+// the two ended in the same state to the last bit (the end states' hashes).
+void printThreads(const std::vector<Result>& results, std::ostream& out) {
+  bool header = false;
+  for (const Result& r : results) {
+    if (r.threads == 1) continue;
+    const Result* one = find(results, r.scene, r.c->id, 1);
+    if (!one) continue;
+    if (!header) {
+      out << "\nThreads (speed-up: one thread's step time over " << r.threads
+          << " threads', median and range of the repeats taken pairwise; hashes of the end states):\n";
+      char line[256];
+      std::snprintf(line, sizeof line, "%-12s %-15s %9s %9s %20s %17s %17s %s\n", "scene", "algo", "1 thread", "threads",
+                    "speed-up", "hash, 1 thread", "hash, threads", "same");
+      out << line;
+      header = true;
+    }
+    const Ratio q = ratio(one, &r);
+    char line[256];
+    std::snprintf(line, sizeof line, "%-12s %-15s %9.3f %9.3f %20s %17s %17s %s\n", r.scene.c_str(), r.c->label,
+                  one->median.total * 1e3, r.median.total * 1e3, ratioText(q).c_str(), hashText(one->median.endHash).c_str(),
+                  hashText(r.median.endHash).c_str(), one->median.endHash == r.median.endHash ? "yes" : "NO");
+    out << line;
+  }
+}
+
+// Issue 20's targets, where their cases and scenes ran: the soft step and A5 (pyramid.json's
+// settings) against Bullet on one thread, and the speed-up on --threads.
+struct Target {
+  const char* scene;
+  const char* caseId;
+  bool speedUp;  // false: our step time over Bullet's at most `bound`; true: one thread's over N threads' at least `bound`
+  double bound;
+};
+constexpr Target kTargets[] = {
+    {"pyramid", "soft", false, 0.40},     {"pyramid_40", "soft", false, 0.40},     {"pyramid_100", "soft", false, 0.40},
+    {"pyramid", "a5-stack", false, 0.35}, {"pyramid_40", "a5-stack", false, 0.35}, {"pyramid_100", "soft", true, 1.6},
+    {"pile_10000", "soft", true, 1.6},    {"pyramid_100", "soft-colours", true, 1.6}, {"pile_10000", "soft-colours", true, 1.6},
+    {"pyramid_100", "a5-stack", true, 1.6},  {"pile_10000", "a5-stack", true, 1.6},
+};
+
+struct TargetResult {
+  const Target* target;
+  const Result* one;    // the case on one thread
+  const Result* other;  // Bullet on the scene, or the case on N threads
+  Ratio ratio;          // one's step time over other's
+  bool met;
+};
+
+std::vector<TargetResult> judgeTargets(const std::vector<Result>& results) {
+  std::vector<TargetResult> out;
+  for (const Target& t : kTargets) {
+    const Result* one = find(results, t.scene, t.caseId, 1);
+    if (!one) continue;
+    const Result* other = nullptr;
+    for (const Result& r : results)
+      if (r.scene == t.scene && (t.speedUp ? std::string(r.c->id) == t.caseId && r.threads > 1 : r.c->peer() == kBulletPeer))
+        other = &r;
+    if (!other || !one->median.finite || !other->median.finite) continue;
+    const Ratio q = ratio(one, other);
+    out.push_back({&t, one, other, q, t.speedUp ? q.median >= t.bound : q.median <= t.bound});
+  }
+  return out;
+}
+
+void printTargets(const std::vector<Result>& results, std::ostream& out) {
+  const std::vector<TargetResult> judged = judgeTargets(results);
+  if (!judged.empty()) out << "\nTargets:\n";
+  for (const TargetResult& j : judged) {
+    const Target& t = *j.target;
+    out << "  " << t.scene << " " << j.one->c->label;
+    if (t.speedUp) out << " on " << j.other->threads << " threads: speed-up at least " << fmt("%.2fx", t.bound);
+    else out << ": at most " << fmt("%.2fx", t.bound) << " Bullet's step time";
+    out << ": " << (j.met ? "MET" : "NOT MET") << " (" << ratioText(j.ratio) << ")\n";
+  }
+}
+
 void printTables(const std::vector<Result>& results, int steps, std::ostream& out) {
   printTimeTable(results, out);
   printEndTable(results, steps, out);
+  printThreads(results, out);
   const std::vector<Comparison> comps = compare(results);
-  if (comps.empty()) return;
-  printComparisons(comps, out);
-  printGoal(comps, out);
+  if (!comps.empty()) {
+    printComparisons(comps, out);
+    printGoal(comps, out);
+  }
+  printTargets(results, out);
 }
 
 nlohmann::json ratioJson(const Ratio& q) {
@@ -636,6 +722,7 @@ struct Options {
   std::string json;
   bool quick = false;
   bool scaling = false;
+  int threads = 1;      // > 1: every substep case also on this many threads
   std::vector<int> sizes{100, 300, 1000, 3000, 10000};
   std::string command;  // the command line, for the JSON
 };
@@ -704,7 +791,7 @@ std::optional<Result> planCase(const Scene& scene, size_t index, const std::stri
   return r;
 }
 
-BenchPlan planBench(const std::vector<std::string>& sceneNames, const std::vector<const Case*>& cases) {
+BenchPlan planBench(const std::vector<std::string>& sceneNames, const std::vector<const Case*>& cases, int threads) {
   BenchPlan plan;
   std::vector<std::string> names;
   plan.scenes.reserve(sceneNames.size());  // results point at their scene's model
@@ -719,7 +806,13 @@ BenchPlan planBench(const std::vector<std::string>& sceneNames, const std::vecto
   }
   for (size_t s = 0; s < plan.scenes.size(); ++s)
     for (const Case* c : cases)
-      if (std::optional<Result> r = planCase(plan.scenes[s], s, names[s], c, plan.skipped)) plan.results.push_back(std::move(*r));
+      if (std::optional<Result> r = planCase(plan.scenes[s], s, names[s], c, plan.skipped)) {
+        plan.results.push_back(*r);
+        if (threads > 1 && c->engine() == EngineKind::Substep) {  // the same case on `threads` threads
+          r->threads = r->settings.threads = threads;
+          plan.results.push_back(std::move(*r));
+        }
+      }
   return plan;
 }
 
@@ -734,7 +827,10 @@ struct TimedRuns {
 // Returns the source state, as git sees the tree now.
 std::string printHeader(const Options& opt, const std::vector<Result>& results) {
   std::cout << "substep-bench  " << utcNow() << "  " << cpuModel() << ", " << std::thread::hardware_concurrency()
-            << " hardware threads, single-threaded runs; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
+            << " hardware threads, "
+            << (opt.threads > 1 ? "substep cases on 1 and " + std::to_string(opt.threads) + " threads, the rest on one"
+                                : std::string("single-threaded runs"))
+            << "; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
             << bulletVersion() << ", ODE " << lab::peerVersion(kOdePeer) << ", MuJoCo " << lab::peerVersion(kMujocoPeer)
             << "; load average " << loadAverage() << "\n";
   const std::string source = sourceState();
@@ -756,7 +852,7 @@ void timeRepeats(BenchPlan& plan, int steps, int repeat) {
       Run run = runCase(plan.scenes[r.sceneIndex], *r.c, r.settings, steps, stepTimes);
       ++done;
       std::fprintf(stderr, "[%d/%d] %-8s %-15s repeat %d/%d: %.3f ms/step\n", done, totalRuns, r.scene.c_str(),
-                   r.c->label, rep + 1, repeat, run.total * 1e3);
+                   r.label().c_str(), rep + 1, repeat, run.total * 1e3);
       r.runs.push_back(run);
     }
   }
@@ -767,7 +863,7 @@ void timeRepeats(BenchPlan& plan, int steps, int repeat) {
 // The repeats ended alike, so they timed the same work.
 bool sameEnd(const Run& a, const Run& b) {
   return a.contacts == b.contacts && a.moved == b.moved && a.finite == b.finite && a.maxSpeed == b.maxSpeed &&
-         a.jointError == b.jointError && a.stepsDone == b.stepsDone;
+         a.jointError == b.jointError && a.stepsDone == b.stepsDone && a.endHash == b.endHash;
 }
 
 // Each case's median run, whether its repeats ended alike, and its ratio to Bullet on its scene.
@@ -811,16 +907,16 @@ void printWarnings(const std::vector<Result>& results, bool allFinite) {
     std::cout << "WARNING: some cases ended differently between repeats (contacts, displacement, speed or joint\n"
                  "error differ), so their repeats did not time the same work:\n";
     for (const Result& r : results)
-      if (!r.repeatable) std::cout << "  " << r.scene << " " << r.c->label << "\n";
+      if (!r.repeatable) std::cout << "  " << r.scene << " " << r.label() << "\n";
   }
   if (!allFinite) {
     std::cout << "WARNING: some runs diverged (NaN@k: at step k):\n";
     for (const Result& r : results)
-      if (!r.median.finite) std::cout << "  " << r.scene << " " << r.c->label << ": " << r.median.problem << "\n";
+      if (!r.median.finite) std::cout << "  " << r.scene << " " << r.label() << ": " << r.median.problem << "\n";
   }
   for (const Result& r : results)
     if (r.median.refused)
-      std::cout << "Refused mid-run (refused@k: at step k; a peer's limit, not timed): " << r.scene << " " << r.c->label << ": "
+      std::cout << "Refused mid-run (refused@k: at step k; a peer's limit, not timed): " << r.scene << " " << r.label() << ": "
                 << r.median.problem << "\n";
 }
 
@@ -830,7 +926,9 @@ nlohmann::json resultJson(const Result& r) {
   nlohmann::json j = runJson(r.median, *r.model);
   j["scene"] = r.scene;
   j["case"] = r.c->id;
-  j["label"] = r.c->label;
+  j["label"] = r.label();
+  j["threads"] = r.threads;
+  j["end_hash"] = hashText(r.median.endHash);
   j["engine"] = r.c->engine() == EngineKind::Substep ? std::string("substep") : r.c->peer();
   j["method"] = r.c->spec;
   if (r.c->engine() == EngineKind::Substep) {
@@ -887,6 +985,16 @@ nlohmann::json benchJson(const Options& opt, const BenchPlan& plan, const TimedR
   doc["comparisons"] = nlohmann::json::array();
   for (const Comparison& c : compare(plan.results)) doc["comparisons"].push_back(comparisonJson(c));
   doc["bullet_skipped"] = plan.skipped;
+  doc["threads"] = opt.threads;
+  doc["targets"] = nlohmann::json::array();
+  for (const TargetResult& j : judgeTargets(plan.results))
+    doc["targets"].push_back({{"scene", j.target->scene},
+                              {"case", j.target->caseId},
+                              {"kind", j.target->speedUp ? "speed_up_at_least" : "vs_bullet_at_most"},
+                              {"bound", j.target->bound},
+                              {"threads", j.target->speedUp ? j.other->threads : 1},
+                              {"ratio", ratioJson(j.ratio)},
+                              {"met", j.met}});
   return doc;
 }
 
@@ -896,7 +1004,7 @@ int bench(const Options& opt) {
   const std::vector<const Case*> cases = chooseCases(opt.algos, opt.scaling);
   if (opt.scaling) return scaling(cases, opt.sizes, opt.steps, opt.repeat, opt.json);
   if (!opt.json.empty()) checkJsonPath(opt.json);
-  BenchPlan plan = planBench(opt.scenes, cases);
+  BenchPlan plan = planBench(opt.scenes, cases, opt.threads);
   TimedRuns t;
   t.source = printHeader(opt, plan.results);
   t.loadBefore = loadAverage();
@@ -938,6 +1046,10 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   app.add_option("--algos", opt.algos, algoHelp)->delimiter(',');
   app.add_option("--json", opt.json, "Also write the results as JSON to FILE (written atomically)");
+  app.add_option("--threads", opt.threads,
+                 "Also run every substep case on N threads: the speed-up over one thread and whether the end states' "
+                 "hashes are equal (default 1: single-threaded runs only)")
+      ->check(CLI::Range(1, 256));
   app.add_flag("--quick", opt.quick, "Smoke test: 10 steps per run unless --steps is given");
   app.add_flag("--scaling", opt.scaling,
                "Scaling mode: piles of --sizes boxes, the log-log slope of step time against the count and the "

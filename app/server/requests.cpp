@@ -80,6 +80,7 @@ std::vector<PanelSetup> setups(const Scene& scene, const std::vector<WebSession:
   for (size_t i = 0; i < panels.size(); ++i) {
     SolverOverrides given = panels[i].user;
     if (sleepByDefault && !scene.solver.has(sleep) && !given.has(sleep)) given.set(sleep, 1);
+    given = onEveryCore(scene, given);
     try {
       r.push_back({resolveSettings(scene, given), panels.size() > 1 ? panels[i].user.specText() : ""});
     } catch (const UsageError& e) {

@@ -6,9 +6,9 @@
 
 namespace substep {
 
-void ManifoldCache::beginStep() {
+void ManifoldCache::beginStep(bool keepStorage) {
   std::swap(current_, previous_);
-  current_.clear();
+  if (!keepStorage) current_.clear();
   cursor_ = 0;
 }
 
@@ -54,20 +54,35 @@ const Manifold* ManifoldCache::previous(int a, int b) {
 }
 
 void ManifoldCache::reuse(const Manifold& old, const Frame& poseA, const Frame& poseB) {
-  Manifold m = old;  // detection pose kept: the shift is measured from there, so it cannot creep
+  Manifold m;
+  kept(m, old, poseA, poseB);
+  take(m);
+}
+
+void ManifoldCache::kept(Manifold& m, const Manifold& old, const Frame& poseA, const Frame& poseB) {
+  m = old;  // detection pose kept: the shift is measured from there, so it cannot creep
   for (int i = 0; i < m.count; ++i) {
     ManifoldPoint& p = m.points[i];
     p.depth = -(poseA.apply(p.localA) - poseB.apply(p.localB)).dot(poseB.rotate(p.localN));
     ++p.age;
   }
+}
+
+void ManifoldCache::take(Manifold& m) {
+  for (int i = 0; i < m.count; ++i)
+    if (m.points[i].id == 0) m.points[i].id = nextId_++;
   current_.push_back(m);
 }
 
 void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, double friction, double restitution,
                         const ContactPatch& patch, double reach) {
-  const Manifold* old = previous(a, b);
-
   Manifold m;
+  made(m, a, b, poseA, poseB, friction, restitution, patch, reach, previous(a, b));
+  take(m);
+}
+
+void ManifoldCache::made(Manifold& m, int a, int b, const Pose& poseA, const Pose& poseB, double friction,
+                         double restitution, const ContactPatch& patch, double reach, const Manifold* old) {
   m.a = a;
   m.b = b;
   m.friction = friction;
@@ -103,7 +118,7 @@ void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, doub
       p.age = o.age + 1;
       p.lambda = o.lambda;
     } else {
-      p.id = nextId_++;
+      p.id = 0;  // take() numbers it
     }
   }
   // The pair's friction carries over while any of its points does.
@@ -115,7 +130,6 @@ void ManifoldCache::add(int a, int b, const Pose& poseA, const Pose& poseB, doub
         if (m.count == old->count) m.blockMask = old->blockMask;
         break;
       }
-  current_.push_back(m);
 }
 
 }  // namespace substep

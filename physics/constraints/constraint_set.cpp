@@ -37,7 +37,6 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   units.clear();
   blocks.clear();
   couplings.clear();
-  contacts.clear();
   joints.clear();
 
   if (jointLambdaFirst_.size() != model.joints.size()) {
@@ -89,67 +88,93 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     joints.push_back(ref);
   }
 
-  // Per manifold: its points' normal rows, then its three friction rows.
+  // Per manifold: its points' normal rows, then its three friction rows, at places known from
+  // the point counts, so that the manifolds are formulated on the step's threads, each writing
+  // only its own rows and definitions.
   contactFirstRow = static_cast<int>(next);
-  frictions.clear();
-  frames_.assign(poses.begin(), poses.end());
-  const bool worldFrame = settings.contactFrame == ContactFrame::World;
-  for (const Manifold& m : manifolds) {
-    const Frame& A = frames_[static_cast<size_t>(m.a)];
-    const Frame& B = frames_[static_cast<size_t>(m.b)];
-    FrictionDef f;
-    f.a = m.a;
-    f.b = m.b;
-    f.mu = m.friction;
-    f.firstNormal = static_cast<int>(next);
-    f.normalCount = m.count;
-    Vec3 normalSum = Vec3::Zero(), worldNormalSum = Vec3::Zero();
-    const Share share(m.count);
-    for (int k = 0; k < m.count; ++k) {
-      const ManifoldPoint& p = m.points[k];
-      ContactDef c;
-      c.a = m.a;
-      c.b = m.b;
-      c.localA = p.localA;
-      c.localB = p.localB;
-      c.localN = p.localN;
-      c.worldFrame = worldFrame;
-      c.worldN = p.worldN;
-      c.armA = p.armA;
-      c.armB = p.armB;
-      c.row = static_cast<int>(next);
-      c.restitution = m.restitution;
-      contacts.push_back(c);
-      Row& r = *take(1);
-      formulateContact(c, A, B, h, slop_, r, false);
-      r.lambda = settings.warmStart ? p.lambda : 0.0;
-      // Apart at the step's start (C > 0, β < 0): a speculative point. Without speculative points
-      // (the report has none) it stays in the manifold but holds nothing until it touches.
-      r.speculative = r.bias < 0 && speculative_;
-      if (r.bias < 0 && !speculative_) r.hi = r.lambda = 0;
-      f.localA += share(p.localA);  // the centroids
-      f.localB += share(p.localB);
-      f.armA += share(p.armA);
-      f.armB += share(p.armB);
-      normalSum += p.localN;
-      worldNormalSum += p.worldN;
-    }
-    f.localN = normalSum.normalized();
-    f.worldFrame = worldFrame;
-    f.worldN = worldNormalSum.normalized();
-    for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm());
-    f.row = static_cast<int>(next);
-    f.qB = poses[static_cast<size_t>(m.b)].q;
-    Row* fr = take(3);
-    formulateFriction(f, A, B, fr, false);
-    if (settings.warmStart) {
-      carryFrictionImpulse(m.frictionImpulse, B, fr);  // last step's, on this step's tangents
-      fr[2].lambda = m.twistImpulse;
-    }
-    if (!settings.frictionExempt)
-      for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
-    frictions.push_back(f);
+  const size_t nm = manifolds.size();
+  manifoldRow_.resize(nm + 1);
+  manifoldPoint_.resize(nm + 1);
+  manifoldPoint_[0] = 0;
+  for (size_t k = 0; k < nm; ++k) manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
+  // The rows: in manifold order, or coloured, in the order the colours are solved in, so that a
+  // solve colour by colour streams through them.
+  colourManifolds(manifolds, mass, settings.algorithm == Algorithm::Soft && settings.colours);
+  int at = static_cast<int>(next);
+  for (size_t q = 0; q < nm; ++q) {
+    const size_t k = colourStart.empty() ? q : static_cast<size_t>(colourOrder[q]);
+    manifoldRow_[k] = at;
+    at += manifolds[k].count + 3;
   }
+  manifoldRow_[nm] = at;
+  frictions.resize(nm);  // every element written below
+  contacts.resize(static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
+  frames_.resize(poses.size());
+  parallel(poses.size(), 256, [&](size_t first, size_t last) {
+    for (size_t i = first; i < last; ++i) frames_[i] = Frame(poses[i]);
+  });
+  const bool worldFrame = settings.contactFrame == ContactFrame::World;
+  const bool warm = settings.warmStart, exempt = settings.frictionExempt;
+  parallel(nm, 32, [&](size_t first, size_t last) {
+    for (size_t mk = first; mk < last; ++mk) {
+      const Manifold& m = manifolds[mk];
+      const Frame& A = frames_[static_cast<size_t>(m.a)];
+      const Frame& B = frames_[static_cast<size_t>(m.b)];
+      Row* r = rows.data() + manifoldRow_[mk];
+      for (int k = 0; k < m.count + 3; ++k) resetRow(r[k]);
+      FrictionDef f;
+      f.a = m.a;
+      f.b = m.b;
+      f.mu = m.friction;
+      f.firstNormal = manifoldRow_[mk];
+      f.normalCount = m.count;
+      Vec3 normalSum = Vec3::Zero(), worldNormalSum = Vec3::Zero();
+      const Share share(m.count);
+      for (int k = 0; k < m.count; ++k) {
+        const ManifoldPoint& p = m.points[k];
+        ContactDef& c = contacts[static_cast<size_t>(manifoldPoint_[mk] + k)];
+        c.a = m.a;
+        c.b = m.b;
+        c.localA = p.localA;
+        c.localB = p.localB;
+        c.localN = p.localN;
+        c.worldFrame = worldFrame;
+        c.worldN = p.worldN;
+        c.armA = p.armA;
+        c.armB = p.armB;
+        c.row = manifoldRow_[mk] + k;
+        c.restitution = m.restitution;
+        c.approach = 0;  // recordApproach's
+        formulateContact(c, A, B, h, slop_, r[k], false);
+        r[k].lambda = warm ? p.lambda : 0.0;
+        // Apart at the step's start (C > 0, β < 0): a speculative point. Without speculative points
+        // (the report has none) it stays in the manifold but holds nothing until it touches.
+        r[k].speculative = r[k].bias < 0 && speculative_;
+        if (r[k].bias < 0 && !speculative_) r[k].hi = r[k].lambda = 0;
+        f.localA += share(p.localA);  // the centroids
+        f.localB += share(p.localB);
+        f.armA += share(p.armA);
+        f.armB += share(p.armB);
+        normalSum += p.localN;
+        worldNormalSum += p.worldN;
+      }
+      f.localN = normalSum.normalized();
+      f.worldFrame = worldFrame;
+      f.worldN = worldNormalSum.normalized();
+      for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm());
+      f.row = manifoldRow_[mk] + m.count;
+      f.qB = poses[static_cast<size_t>(m.b)].q;
+      Row* fr = r + m.count;
+      formulateFriction(f, A, B, fr, false);
+      if (warm) {
+        carryFrictionImpulse(m.frictionImpulse, B, fr);  // last step's, on this step's tangents
+        fr[2].lambda = m.twistImpulse;
+      }
+      if (!exempt)
+        for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
+      frictions[mk] = f;
+    }
+  });
   // Solve order: joints, then the contacts by contactOrder (unitOrder()). Split: every contact's
   // normal row, then the friction rows; with friction interleaved, Gauss-Seidel spends its sweeps
   // on friction before the normal impulses that bound it exist: a 5-box stack under A2 at 10
@@ -182,7 +207,48 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   for (size_t k = 0; k < frictions.size(); ++k)
     if (frictions[k].unit >= 0)
       blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)].lastMask = manifolds[k].blockMask;
-  findIslands(settings.islands);
+  findIslands(settings.islands && settings.algorithm == Algorithm::A5);  // only A5 reads them
+}
+
+void ConstraintSet::colourManifolds(const std::vector<Manifold>& manifolds, const std::vector<BodyMass>& mass, bool on) {
+  colourOrder.clear();
+  colourStart.clear();
+  if (!on) return;
+  // Greedy, in the step's order, as Box2D v3's constraint graph assigns them: a manifold between
+  // two moving bodies takes the lowest colour below kDynamicColours neither body has yet; one
+  // with a static (or sleeping) body, which the solve never moves and which joins every colour,
+  // the highest from kColours - 1 down to 1 its moving body has not. The soft step solves them
+  // from the highest colour down (docs/algorithms.md, "Colours").
+  const size_t nm = manifolds.size();
+  colourUsed_.assign(mass.size(), 0);
+  colourOf_.resize(nm);
+  int count[kColours + 1] = {};
+  for (size_t k = 0; k < nm; ++k) {
+    const int a = manifolds[k].a, b = manifolds[k].b;
+    const bool da = mass[static_cast<size_t>(a)].invMass > 0, db = mass[static_cast<size_t>(b)].invMass > 0;
+    const uint64_t taken = (da ? colourUsed_[static_cast<size_t>(a)] : 0) | (db ? colourUsed_[static_cast<size_t>(b)] : 0);
+    int col = kColours;
+    if (da && db) {
+      const uint64_t free = ~taken & ((1ull << kDynamicColours) - 1);
+      if (free) col = __builtin_ctzll(free);
+    } else {
+      const uint64_t free = ~taken & ~1ull;
+      if (free) col = 63 - __builtin_clzll(free);
+    }
+    if (col < kColours) {
+      if (da) colourUsed_[static_cast<size_t>(a)] |= 1ull << col;
+      if (db) colourUsed_[static_cast<size_t>(b)] |= 1ull << col;
+    }
+    colourOf_[k] = static_cast<unsigned char>(col);
+    ++count[col];
+  }
+  colourStart.assign(kColours + 2, 0);
+  for (int col = 0; col <= kColours; ++col)
+    colourStart[static_cast<size_t>(col) + 1] = colourStart[static_cast<size_t>(col)] + count[col];
+  colourOrder.resize(nm);
+  int at[kColours + 1];
+  std::copy(colourStart.begin(), colourStart.end() - 1, at);
+  for (size_t k = 0; k < nm; ++k) colourOrder[static_cast<size_t>(at[colourOf_[k]]++)] = static_cast<int>(k);
 }
 
 void ConstraintSet::findIslands(bool split) {
@@ -382,8 +448,23 @@ void formBlock(const Row* b, const double (&unscale)[4], const BodyMass* mass, b
 }  // namespace
 
 void ConstraintSet::finishAll(const std::vector<BodyMass>& mass, double applyScale) {
-  finishRows(0, static_cast<int>(rows.size()), mass, applyScale);
-  for (SolveUnit& u : units) finishUnit(u, mass, applyScale);
+  // Blocks and couplings numbered first, in unit order; then rows and units on the step's threads.
+  for (SolveUnit& u : units) {
+    if (u.kind == SolveUnit::Single || u.block >= 0) continue;
+    if (u.kind == SolveUnit::Friction) {
+      u.block = static_cast<int>(couplings.size());
+      couplings.emplace_back();
+    } else {
+      u.block = static_cast<int>(blocks.size());
+      blocks.emplace_back();
+    }
+  }
+  parallel(rows.size(), 512, [&](size_t first, size_t last) {
+    finishRows(static_cast<int>(first), static_cast<int>(last), mass, applyScale);
+  });
+  parallel(units.size(), 256, [&](size_t first, size_t last) {
+    for (size_t u = first; u < last; ++u) finishUnit(units[u], mass, applyScale);
+  });
 }
 
 void ConstraintSet::finishJoint(const JointRef& ref, const std::vector<BodyMass>& mass, double applyScale) {
@@ -474,21 +555,28 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
     for (int i = 0; i < ref.count; ++i)
       jointLambda_[static_cast<size_t>(jointLambdaFirst_[static_cast<size_t>(ref.joint)] + i)] =
           rows[static_cast<size_t>(ref.first + i)].lambda;
-  size_t c = 0, f = 0;
-  for (Manifold& m : manifolds) {
-    for (int p = 0; p < m.count; ++p) m.points[p].lambda = rows[static_cast<size_t>(contacts[c++].row)].lambda;
-    const Row* fr = &rows[static_cast<size_t>(frictions[f].row)];
-    m.frictionImpulse = frictionImpulseInB(frictions[f].qB, fr);
-    m.twistImpulse = fr[2].lambda;
-    if (frictions[f].unit >= 0)
-      m.blockMask = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[f].unit)].block)].lastMask;
-    ++f;
-  }
+  parallel(manifolds.size(), 256, [&](size_t first, size_t last) {
+    for (size_t f = first; f < last; ++f) {
+      Manifold& m = manifolds[f];
+      for (int p = 0; p < m.count; ++p)
+        m.points[p].lambda = rows[static_cast<size_t>(contacts[static_cast<size_t>(manifoldPoint_[f] + p)].row)].lambda;
+      const Row* fr = &rows[static_cast<size_t>(frictions[f].row)];
+      m.frictionImpulse = frictionImpulseInB(frictions[f].qB, fr);
+      m.twistImpulse = fr[2].lambda;
+      if (frictions[f].unit >= 0)
+        m.blockMask = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[f].unit)].block)].lastMask;
+    }
+  });
 }
 
 void ConstraintSet::recordApproach(const Vec3* v, const Vec3* w) {
   // Only a bouncing pair reads it (applyRestitution): the others skip the row's J̌v̌.
-  for (ContactDef& c : contacts) c.approach = c.restitution != 0 ? rowVelocity(rows[static_cast<size_t>(c.row)], v, w) : 0.0;
+  parallel(contacts.size(), 1024, [&](size_t first, size_t last) {
+    for (size_t k = first; k < last; ++k) {
+      ContactDef& c = contacts[k];
+      c.approach = c.restitution != 0 ? rowVelocity(rows[static_cast<size_t>(c.row)], v, w) : 0.0;
+    }
+  });
 }
 
 double ConstraintSet::maxPenetration(const std::vector<Pose>& poses) const {

@@ -6,8 +6,10 @@
 #include "physics/constraints/contact.h"
 #include "physics/constraints/row.h"
 #include "physics/model.h"
+#include "physics/parallel.h"
 #include "physics/settings.h"
 
+#include <cstdint>
 #include <vector>
 
 namespace substep {
@@ -87,6 +89,16 @@ class ConstraintSet {
   ConstraintPart island(int k) const;  // a single island is whole()
   ConstraintPart whole(size_t bodies) const;  // every unit, row, body (static ones too) and joint
 
+  // The soft step's colours (SolverSettings::colours; else empty): the manifolds ordered so that
+  // no two of a colour share a body that moves, colour k's at colourOrder[colourStart[k] ..
+  // colourStart[k + 1]) in the step's order, their rows laid out in this order; colour
+  // kColours holds those that found none of the kColours (solved alone, last).
+  static constexpr int kColours = 64, kDynamicColours = kColours - 4;
+  std::vector<int> colourOrder, colourStart;
+
+  // The threads build() and re-formulations share their work out on (null: the caller's alone).
+  void setPool(WorkerPool* pool) { pool_ = pool; }
+
   // Largest penetration of any contact point and largest joint error at `poses` [m].
   double maxPenetration(const std::vector<Pose>& poses) const;
   double maxJointError(const std::vector<Pose>& poses) const;
@@ -101,6 +113,14 @@ class ConstraintSet {
   void finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale);
 
   const Model* model_ = nullptr;
+  WorkerPool* pool_ = nullptr;
+  // f(first, last) over [0, count) in ranges of `grain`, on the pool's threads when there is one.
+  template <class F>
+  void parallel(size_t count, size_t grain, F f) {
+    if (pool_) pool_->forRange(count, grain, [&](size_t first, size_t last, int) { f(first, last); });
+    else f(0, count);
+  }
+  std::vector<int> manifoldRow_, manifoldPoint_;  // per manifold: its first row and first point; one past the last
   double slop_ = 0;
   bool stableBlocks_ = false, contactBlocks_ = false, speculative_ = true, motorUnscaled_ = true;
   std::vector<double> jointLambda_;  // per joint row, last step's impulses
@@ -108,6 +128,9 @@ class ConstraintSet {
   std::vector<Frame> frames_;  // the poses contacts are formulated at, as rotation matrices
 
   void findIslands(bool split);
+  void colourManifolds(const std::vector<Manifold>& manifolds, const std::vector<BodyMass>& mass, bool on);
+  std::vector<uint64_t> colourUsed_;  // per body: the colours its manifolds took
+  std::vector<unsigned char> colourOf_;
   // The order of the contact units: build() lays them out so, findIslands keeps it per island.
   enum class UnitOrder { NormalsFirst, FrictionFirst, Manifold };
   UnitOrder unitOrder_ = UnitOrder::NormalsFirst;

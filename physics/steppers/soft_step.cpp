@@ -15,10 +15,17 @@
 // motion within the step with J̌ held, C = C⁰ + J̌ Σ h v̌ᵏ, which is the report's bias update rule
 // (proc4:16, IV.3.1.3); joints are re-formulated from the coordinates every sub-step.
 // Contacts against static bodies are twice as stiff; friction and motors are rigid.
+//
+// Order: the joints' rows first, then the manifolds in the step's order; or, with
+// SolverSettings::colours, colour by colour as Box2D v3's solver.c does: no two manifolds of a
+// colour share a moving body, and each colour's (in the step's order) are solved on the step's
+// threads. Within a colour no manifold reads what another writes, so the trajectory is the same
+// to the last bit for any number of threads.
 #include "physics/steppers/stepper.h"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace substep {
 
@@ -59,40 +66,51 @@ class SoftStepper final : public Stepper {
     soft_[kJointSoft] = joint;
     soft_[kContactSoft] = contact;
     soft_[kStaticSoft] = staticContact;
-    kind_.assign(cs.rows.size(), Kind::Joint);
-    softOf_.assign(cs.rows.size(), kJointSoft);
-    c0_.assign(cs.rows.size(), 0.0);
-    for (size_t k = 0; k < cs.rows.size(); ++k) {
-      const Row& r = cs.rows[k];
-      if (r.velocityTarget) kind_[k] = Kind::Target;
-      else if (r.velocityLevel) kind_[k] = Kind::Friction;
-      else if (r.lo == 0 && std::isinf(r.hi)) kind_[k] = Kind::Limit;  // joint limits: C from β
-    }
-    for (const ContactDef& ct : cs.contacts) {
-      const size_t k = static_cast<size_t>(ct.row);
-      kind_[k] = Kind::Contact;
-      c0_[k] = -cs.rows[k].bias * h;  // β = -C/h as s2 formulated it
-      const bool onStatic = c.model->bodies[static_cast<size_t>(ct.a)].isStatic ||
-                            c.model->bodies[static_cast<size_t>(ct.b)].isStatic;
-      softOf_[k] = onStatic ? kStaticSoft : kContactSoft;
-    }
+    kind_.resize(cs.rows.size());
+    softOf_.resize(cs.rows.size());
+    c0_.resize(cs.rows.size());
+    c.pool->forRange(cs.rows.size(), 1024, [&](size_t first, size_t last, int) {
+      for (size_t k = first; k < last; ++k) {
+        const Row& r = cs.rows[k];
+        kind_[k] = Kind::Joint;
+        softOf_[k] = kJointSoft;
+        c0_[k] = 0;
+        if (r.velocityTarget) kind_[k] = Kind::Target;
+        else if (r.velocityLevel) kind_[k] = Kind::Friction;
+        else if (r.lo == 0 && std::isinf(r.hi)) kind_[k] = Kind::Limit;  // joint limits: C from β
+      }
+    });
+    c.pool->forRange(cs.contacts.size(), 1024, [&](size_t first, size_t last, int) {
+      for (size_t q = first; q < last; ++q) {
+        const ContactDef& ct = cs.contacts[q];
+        const size_t k = static_cast<size_t>(ct.row);
+        kind_[k] = Kind::Contact;
+        c0_[k] = -cs.rows[k].bias * h;  // β = -C/h as s2 formulated it
+        const bool onStatic = c.model->bodies[static_cast<size_t>(ct.a)].isStatic ||
+                              c.model->bodies[static_cast<size_t>(ct.b)].isStatic;
+        softOf_[k] = onStatic ? kStaticSoft : kContactSoft;
+      }
+    });
     dpV_.assign(nb, Vec3::Zero());
     dpW_.assign(nb, Vec3::Zero());
     c.subPoses = c.poses;
+    colour(c);
     const Pass solve{true, h, st.pushOut}, relax{false, h, st.pushOut};
 
     for (int j = 0; j < n; ++j) {
       addExternal(c, h);
-      startSubStepImpulses(c, j);
+      startImpulses(c, j);
       for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = softSweep(c, solve);
       // Coordinates to the sub-step's end with the solved (biased) velocities.
-      for (size_t i = 0; i < nb; ++i) {
-        if (c.model->bodies[i].isStatic) continue;
-        dpV_[i] += h * c.v[i];
-        dpW_[i] += h * c.w[i];
-        c.subPoses[i].p += h * c.v[i];
-        c.subPoses[i].q = (c.subPoses[i].q * Rq(h * c.w[i])).normalized();
-      }
+      c.pool->forRange(nb, 512, [&](size_t first, size_t last, int) {
+        for (size_t i = first; i < last; ++i) {
+          if (c.model->bodies[i].isStatic) continue;
+          dpV_[i] += h * c.v[i];
+          dpW_[i] += h * c.w[i];
+          c.subPoses[i].p += h * c.v[i];
+          c.subPoses[i].q = (c.subPoses[i].q * Rq(h * c.w[i])).normalized();
+        }
+      });
       recordSubStep(c, j);
       if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Reformulation::JointRows, 1.0);
       for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep(c, relax);
@@ -153,22 +171,93 @@ class SoftStepper final : public Stepper {
     return {massScale * r.effMass, bias * r.effMass, impulseScale};
   }
 
-  // One sweep, row by row (the soft step solves no blocks; a manifold's friction rows as one
-  // unit, their two bodies' velocities read once), each row's update computed as it is reached:
-  // one pass over the rows per sweep.
+  // What a sweep needs of the step's colours (ConstraintSet::colourOrder).
+  void colour(StepContext& c) {
+    const ConstraintSet& cs = *c.constraints;
+    // The joints' solve units: those before the first contact unit.
+    jointUnits_ = cs.joints.empty() ? 0 : cs.joints.back().firstUnit + cs.joints.back().units;
+    // A manifold's rows in the order the settings give: its normals, then its friction (Box2D's);
+    // or, split, all friction then all normals when warm, all normals then all friction cold.
+    const ContactOrder order = c.settings->contactOrder;
+    phaseCount_ = order == ContactOrder::Manifold ? 1 : 2;
+    phases_[0] = order == ContactOrder::Manifold ? Phase::Both : c.settings->warmStart ? Phase::Friction : Phase::Normals;
+    phases_[1] = c.settings->warmStart ? Phase::Normals : Phase::Friction;
+    change_.assign(static_cast<size_t>(c.pool->threads()) * kPad, 0.0);
+  }
+
+  static bool moves(const StepContext& c, int body) { return c.mass[static_cast<size_t>(body)].invMass > 0; }
+
+  // f(manifold index, change) for every manifold, colour by colour, each colour's on the threads;
+  // change: where f keeps the largest velocity change it made, the thread's share of change_.
+  template <class F>
+  void eachManifold(StepContext& c, F f) {
+    const std::vector<int>& order = c.constraints->colourOrder;
+    const std::vector<int>& start = c.constraints->colourStart;
+    if (start.empty()) {  // not coloured: in the step's order, on this thread
+      for (size_t k = 0; k < c.constraints->frictions.size(); ++k) f(k, change_[0]);
+      return;
+    }
+    // From the highest colour down, the overflow last: the manifolds with a static body first,
+    // then those between moving bodies from the last colour assigned to the first.
+    for (int ci = 0; ci <= ConstraintSet::kColours; ++ci) {
+      const int col = ci == ConstraintSet::kColours ? ci : ConstraintSet::kColours - 1 - ci;
+      const int first = start[static_cast<size_t>(col)], last = start[static_cast<size_t>(col) + 1];
+      if (first == last) continue;
+      if (col == ConstraintSet::kColours) {  // the overflow: in order, on this thread
+        for (int q = first; q < last; ++q) f(static_cast<size_t>(order[static_cast<size_t>(q)]), change_[0]);
+        continue;
+      }
+      c.pool->forRange(static_cast<size_t>(last - first), kManifoldGrain, [&](size_t b, size_t e, int t) {
+        double change = 0;  // the block's, kept here: threads writing neighbouring slots would share a cache line
+        for (size_t q = b; q < e; ++q) f(static_cast<size_t>(order[static_cast<size_t>(first) + q]), change);
+        double& mine = change_[static_cast<size_t>(t) * kPad];
+        mine = std::max(mine, change);
+      });
+    }
+  }
+
+  // Warm start: sub-step 0 applies last step's λ on this step's J̌ (joints' rows, then each
+  // manifold's, colour by colour); later sub-steps as startSubStepImpulses does.
+  void startImpulses(StepContext& c, int j) {
+    ConstraintSet& cs = *c.constraints;
+    if (j > 0 || !c.settings->warmStart || !c.rowsHeld) {
+      startSubStepImpulses(c, j);
+      return;
+    }
+    const size_t nb = c.bodies();
+    c.startV.resize(nb);
+    c.startW.resize(nb);
+    std::copy(c.v.begin(), c.v.end(), c.startV.begin());
+    std::copy(c.w.begin(), c.w.end(), c.startW.begin());
+    applyRowImpulses(cs, IndexRange{nullptr, 0, cs.contactFirstRow}, c.v, c.w);
+    Row* rows = cs.rows.data();
+    eachManifold(c, [&](size_t k, double&) {
+      const FrictionDef& f = cs.frictions[k];
+      Vec3 va = c.v[static_cast<size_t>(f.a)], wa = c.w[static_cast<size_t>(f.a)];
+      Vec3 vb = c.v[static_cast<size_t>(f.b)], wb = c.w[static_cast<size_t>(f.b)];
+      for (int r = f.firstNormal; r < f.row + 3; ++r)
+        if (rows[r].lambda != 0) applyImpulse(rows[r], rows[r].lambda, va, wa, vb, wb);
+      store(c, f, va, wa, vb, wb);
+    });
+  }
+
+  // Velocities back to the dynamic bodies only: a static body's are read by every colour at once.
+  static void store(StepContext& c, const FrictionDef& f, const Vec3& va, const Vec3& wa, const Vec3& vb, const Vec3& wb) {
+    if (moves(c, f.a)) c.v[static_cast<size_t>(f.a)] = va, c.w[static_cast<size_t>(f.a)] = wa;
+    if (moves(c, f.b)) c.v[static_cast<size_t>(f.b)] = vb, c.w[static_cast<size_t>(f.b)] = wb;
+  }
+
+  // One sweep: the joints' units row by row (a manifold's friction rows as one unit, their two
+  // bodies' velocities read once), then the manifolds colour by colour, each row's update
+  // computed as it is reached.
   double softSweep(StepContext& c, const Pass& p) {
     ConstraintSet& cs = *c.constraints;
     Row* rows = cs.rows.data();
     Vec3* v = c.v.data();
     Vec3* w = c.w.data();
     double change = 0;
-    for (const SolveUnit& u : cs.units) {
-      if (u.kind == SolveUnit::Friction) {  // rigid in both passes: Δλ = -m_eff J̌v̌
-        const int ia = rows[u.first].a, ib = rows[u.first].b;
-        solveFrictionUnit(cs.couplings[static_cast<size_t>(u.block)], &rows[u.first], rows, v[ia], w[ia], v[ib], w[ib], 0, 1,
-                          change);
-        continue;
-      }
+    for (int ui = 0; ui < jointUnits_; ++ui) {
+      const SolveUnit& u = cs.units[static_cast<size_t>(ui)];
       for (int q = 0; q < u.size; ++q) {
         const size_t k = static_cast<size_t>(u.first + q);
         Row& r = rows[k];
@@ -176,8 +265,44 @@ class SoftStepper final : public Stepper {
         change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return -(d.a * jv + d.b) - d.si * r.lambda; }));
       }
     }
+    std::fill(change_.begin(), change_.end(), 0.0);
+    for (int ph = 0; ph < phaseCount_; ++ph) {
+      const Phase phase = phases_[ph];
+      eachManifold(c, [&](size_t k, double& ch) {
+        const FrictionDef& f = cs.frictions[k];
+        Vec3 va = v[f.a], wa = w[f.a], vb = v[f.b], wb = w[f.b];
+        if (phase != Phase::Friction)
+          for (int q = 0; q < f.normalCount; ++q) {
+            const size_t kr = static_cast<size_t>(f.firstNormal + q);
+            Row& r = rows[kr];
+            const Update d = update(r, kr, p);
+            const double jv = rowVelocity(r, va, wa, vb, wb);
+            const double next = std::clamp(r.lambda + (-(d.a * jv + d.b) - d.si * r.lambda), r.lo, r.hi);
+            const double dl = next - r.lambda;
+            r.lambda = next;
+            r.pushed = r.pushed || next > 0;
+            if (dl == 0) continue;
+            applyImpulse(r, dl, va, wa, vb, wb);
+            if (r.effMass > 0) ch = std::max(ch, std::abs(dl) / r.effMass);
+          }
+        if (phase != Phase::Normals) {  // rigid in both passes: Δλ = -m_eff J̌v̌
+          const SolveUnit& u = cs.units[static_cast<size_t>(f.frictionUnit)];
+          solveFrictionUnit(cs.couplings[static_cast<size_t>(u.block)], &rows[f.row], rows, va, wa, vb, wb, 0, 1, ch);
+        }
+        store(c, f, va, wa, vb, wb);
+      });
+    }
+    for (double x : change_) change = std::max(change, x);
     return change;
   }
+
+  enum class Phase : unsigned char { Both, Normals, Friction };
+  static constexpr size_t kManifoldGrain = 32;  // manifolds a thread takes at a time
+  Phase phases_[2] = {Phase::Both, Phase::Both};  // a sweep's passes over the manifolds (no allocation a step)
+  int phaseCount_ = 1;
+  int jointUnits_ = 0;
+  static constexpr size_t kPad = 8;   // change_'s slots a cache line apart
+  std::vector<double> change_;        // per thread (every kPad-th): the sweep's largest velocity change
 
   static constexpr unsigned char kContactSoft = 0, kStaticSoft = 1, kJointSoft = 2;
   Softness soft_[3];

@@ -7,6 +7,7 @@
 
 #include "physics/constraints/constraint_set.h"
 #include "physics/model.h"
+#include "physics/parallel.h"
 #include "physics/settings.h"
 #include "physics/state.h"
 
@@ -53,6 +54,7 @@ struct StepContext {
   bool rowsHeld = false;
   std::vector<Vec3> startV, startW, impV, impW;
   StepStats stats;
+  WorkerPool* pool = nullptr;      // the step's threads
 
   double h() const { return settings->dt; }
   int n() const { return settings->substeps; }

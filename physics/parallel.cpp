@@ -1,0 +1,113 @@
+#include "physics/parallel.h"
+
+#include <algorithm>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#define SUBSTEP_PAUSE() _mm_pause()
+#else
+#define SUBSTEP_PAUSE() std::this_thread::yield()
+#endif
+
+namespace substep {
+
+namespace {
+
+// A worker spins this many rounds (about 50 µs) waiting for the next job before it sleeps: a
+// step hands out jobs microseconds apart (a colour of the soft step's contacts is one), and
+// waking a sleeping thread costs tens of microseconds.
+constexpr int kSpinRounds = 2000;
+
+uint64_t generation(uint64_t s) { return s >> 32; }
+
+}  // namespace
+
+WorkerPool::WorkerPool(int threads) : threads_(std::max(1, threads)) {
+  for (int t = 1; t < threads_; ++t) workers_.emplace_back([this, t] { work(t); });
+}
+
+WorkerPool::~WorkerPool() {
+  {
+    std::lock_guard<std::mutex> lk(m_);
+    stop_.store(true);
+    state_.fetch_add(1ull << 32);  // a new generation wakes everyone to see stop_
+  }
+  cv_.notify_all();
+  for (std::thread& t : workers_) t.join();
+}
+
+void WorkerPool::doBlocks(int thread) {
+  for (size_t b; (b = next_.fetch_add(1, std::memory_order_relaxed)) < blocks_;) {
+    try {
+      fn_(ctx_, b, thread);
+    } catch (...) {
+      std::lock_guard<std::mutex> lk(errorM_);
+      if (!error_) error_ = std::current_exception();
+    }
+  }
+}
+
+void WorkerPool::run(size_t blocks, Fn fn, void* ctx) {
+  // No worker is inside a job here (the last one was closed and every joiner left), so the job's
+  // fields can be written; the release store of the new generation publishes them.
+  fn_ = fn;
+  ctx_ = ctx;
+  blocks_ = blocks;
+  next_.store(0, std::memory_order_relaxed);
+  left_.store(0, std::memory_order_relaxed);
+  const uint64_t gen = generation(state_.load(std::memory_order_relaxed)) + 1;
+  state_.store(gen << 32, std::memory_order_seq_cst);
+  if (sleepers_.load(std::memory_order_seq_cst) > 0) {
+    { std::lock_guard<std::mutex> lk(m_); }
+    cv_.notify_all();
+  }
+  doBlocks(0);
+  // Close the job: a worker that has not joined yet never will (the caller did its blocks), and
+  // those that joined are waited for.
+  const uint64_t s = state_.fetch_or(kClosed, std::memory_order_acq_rel);
+  const int joined = static_cast<int>(s & kCount);
+  for (int spin = 0; left_.load(std::memory_order_acquire) < joined; ++spin) {
+    if (spin < kSpinRounds) SUBSTEP_PAUSE();
+    else std::this_thread::yield();
+  }
+  if (error_) {
+    std::exception_ptr e;
+    std::swap(e, error_);
+    std::rethrow_exception(e);
+  }
+}
+
+void WorkerPool::work(int thread) {
+  uint64_t seen = 0;
+  for (;;) {
+    uint64_t s = state_.load(std::memory_order_acquire);
+    for (int spin = 0; generation(s) == seen; ++spin) {
+      if (spin < kSpinRounds) {
+        SUBSTEP_PAUSE();
+        s = state_.load(std::memory_order_acquire);
+        continue;
+      }
+      std::unique_lock<std::mutex> lk(m_);
+      sleepers_.fetch_add(1, std::memory_order_seq_cst);
+      cv_.wait(lk, [&] { return generation(state_.load(std::memory_order_seq_cst)) != seen; });
+      sleepers_.fetch_sub(1, std::memory_order_relaxed);
+      s = state_.load(std::memory_order_acquire);
+      spin = 0;
+    }
+    if (stop_.load()) return;
+    seen = generation(s);
+    // Join the job unless it was closed (or replaced) meanwhile.
+    bool joined = false;
+    while (!(s & kClosed) && generation(s) == seen) {
+      if (state_.compare_exchange_weak(s, s + 1, std::memory_order_acq_rel)) {
+        joined = true;
+        break;
+      }
+    }
+    if (!joined) continue;
+    doBlocks(thread);
+    left_.fetch_add(1, std::memory_order_release);
+  }
+}
+
+}  // namespace substep

@@ -1,0 +1,75 @@
+// The threads a step runs on (SolverSettings::threads): the calling thread and threads - 1
+// workers. Work is handed out in blocks as threads ask for them, so which thread does which block
+// varies from run to run; every caller makes its result independent of that (each block writes
+// only its own outputs; what is combined is combined in block order afterwards), which is why a
+// trajectory is the same to the last bit for any number of threads (docs/benchmarks.md,
+// "Threads").
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace substep {
+
+class WorkerPool {
+ public:
+  explicit WorkerPool(int threads);  // threads >= 1; 1 runs everything on the caller
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  int threads() const { return threads_; }
+
+  // f(block, thread) for every block in [0, blocks); thread in [0, threads()), 0 the caller.
+  // Returns when all are done; rethrows the first exception a block threw.
+  template <class F>
+  void forBlocks(size_t blocks, F&& f) {
+    if (threads_ == 1 || blocks <= 1) {
+      for (size_t b = 0; b < blocks; ++b) f(b, 0);
+      return;
+    }
+    run(blocks, [](void* ctx, size_t b, int t) { (*static_cast<F*>(ctx))(b, t); }, &f);
+  }
+
+  // f(begin, end, thread) over [0, count) in ranges of `grain` items.
+  template <class F>
+  void forRange(size_t count, size_t grain, F&& f) {
+    if (grain == 0) grain = 1;
+    const size_t blocks = (count + grain - 1) / grain;
+    forBlocks(blocks, [&](size_t b, int t) { f(b * grain, std::min(count, (b + 1) * grain), t); });
+  }
+
+ private:
+  using Fn = void (*)(void*, size_t, int);
+  void run(size_t blocks, Fn fn, void* ctx);
+  void work(int thread);
+  void doBlocks(int thread);
+
+  // state_: the job's generation (high 32 bits), closed (bit 31: no thread may join it any more)
+  // and the workers that joined it (low bits).
+  static constexpr uint64_t kClosed = 1ull << 31;
+  static constexpr uint64_t kCount = kClosed - 1;
+  std::atomic<uint64_t> state_{0};
+  std::atomic<size_t> next_{0};
+  std::atomic<int> left_{0};
+  std::atomic<int> sleepers_{0};
+  std::atomic<bool> stop_{false};
+  Fn fn_ = nullptr;
+  void* ctx_ = nullptr;
+  size_t blocks_ = 0;
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::exception_ptr error_;
+  std::mutex errorM_;
+  int threads_;
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace substep

@@ -1,0 +1,50 @@
+// The step's worker pool (physics/parallel.h): every block handed out once, on every thread
+// count, job after job; an exception in a block reaches the caller.
+#include "physics/parallel.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <stdexcept>
+#include <vector>
+
+using namespace substep;
+
+TEST(WorkerPool, EveryBlockOnceOnEveryThreadCount) {
+  for (int threads : {1, 2, 3, 8}) {
+    WorkerPool pool(threads);
+    for (size_t blocks : {0u, 1u, 2u, 7u, 1000u}) {
+      std::vector<std::atomic<int>> seen(blocks);
+      std::atomic<int> badThread{0};
+      pool.forBlocks(blocks, [&](size_t b, int t) {
+        seen[b].fetch_add(1);
+        if (t < 0 || t >= threads) badThread.fetch_add(1);
+      });
+      for (size_t b = 0; b < blocks; ++b) ASSERT_EQ(seen[b].load(), 1) << threads << " threads, block " << b;
+      EXPECT_EQ(badThread.load(), 0);
+    }
+    // Ranges cover [0, count) exactly, and jobs follow one another without losing any.
+    for (int round = 0; round < 200; ++round) {
+      std::atomic<long> sum{0};
+      pool.forRange(1001, 16, [&](size_t first, size_t last, int) {
+        long s = 0;
+        for (size_t i = first; i < last; ++i) s += static_cast<long>(i);
+        sum.fetch_add(s);
+      });
+      ASSERT_EQ(sum.load(), 1000L * 1001 / 2) << threads << " threads, round " << round;
+    }
+  }
+}
+
+TEST(WorkerPool, ABlockThatThrowsIsRethrownToTheCaller) {
+  WorkerPool pool(2);
+  EXPECT_THROW(pool.forBlocks(64,
+                              [](size_t b, int) {
+                                if (b == 37) throw std::runtime_error("block 37");
+                              }),
+               std::runtime_error);
+  // The pool still works afterwards.
+  std::atomic<int> n{0};
+  pool.forBlocks(10, [&](size_t, int) { n.fetch_add(1); });
+  EXPECT_EQ(n.load(), 10);
+}
