@@ -1,6 +1,7 @@
 #include "physics/parallel.h"
 
 #include <algorithm>
+#include <system_error>
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -22,8 +23,21 @@ uint64_t generation(uint64_t s) { return s >> 32; }
 
 }  // namespace
 
-WorkerPool::WorkerPool(int threads) : threads_(std::max(1, threads)) {
-  for (int t = 1; t < threads_; ++t) workers_.emplace_back([this, t] { work(t); });
+// More threads than the machine runs at once only wait for each other (a scene or a recording
+// may ask for 256): at most twice the cores, so that tests of uneven splits still run on a small
+// machine. The trajectory does not depend on the number.
+static int usableThreads(int asked) {
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return std::max(1, std::min(asked, 2 * cores));
+}
+
+WorkerPool::WorkerPool(int threads) : threads_(usableThreads(threads)) {
+  try {
+    for (int t = 1; t < threads_; ++t) workers_.emplace_back([this, t] { work(t); });
+  } catch (const std::system_error&) {
+    // The system gave fewer threads than asked: go on with those it gave.
+    threads_ = static_cast<int>(workers_.size()) + 1;
+  }
 }
 
 WorkerPool::~WorkerPool() {

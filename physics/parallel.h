@@ -14,13 +14,16 @@
 #include <exception>
 #include <mutex>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 namespace substep {
 
 class WorkerPool {
  public:
-  explicit WorkerPool(int threads);  // threads >= 1; 1 runs everything on the caller
+  // threads >= 1; 1 runs everything on the caller. Holds at most twice the machine's cores, and
+  // fewer if the system gives fewer: threads() says how many.
+  explicit WorkerPool(int threads);
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
@@ -35,7 +38,8 @@ class WorkerPool {
       for (size_t b = 0; b < blocks; ++b) f(b, 0);
       return;
     }
-    run(blocks, [](void* ctx, size_t b, int t) { (*static_cast<F*>(ctx))(b, t); }, &f);
+    using Callable = std::remove_reference_t<F>;
+    run(blocks, [](void* ctx, size_t b, int t) { (*static_cast<Callable*>(ctx))(b, t); }, &f);
   }
 
   // f(begin, end, thread) over [0, count) in ranges of `grain` items.

@@ -236,7 +236,7 @@ std::vector<SettingSpec> makeTable() {
        "moving body), each colour's spread over the threads; off: in the step's order, on one thread. A different "
        "order: on the 100-level pyramid a box slides 65 cm in 10 s with it, 22 cm without (docs/algorithms.md)",
        &S::colours, same(0), {}},
-      {"threads", "", "threads", K::Integer, {1, limits::kMaxThreads}, {}, kEvery, O::Limit, "threads=%s", kNone,
+      {"threads", "", "threads", K::Integer, {1, limits::kMaxThreads}, {}, kEvery, O::Limit, "", kNone,
        "Threads a step runs on: the narrowphase, the formulation and the soft step's contact colours are shared "
        "out; the trajectory is the same to the last bit for any number (1 in the bench and the lab; serve and "
        "render: the machine's cores)",
@@ -744,7 +744,9 @@ std::string settingsLine(const SolverSettings& s, LineDetail detail) {
   const Algorithm a = s.algorithm;
   std::vector<std::string> items;
   for (const SettingSpec& spec : settingTable()) {
-    if (!spec.resolved() || !spec.takes.has(a) || std::string(spec.key) == "algorithm") continue;
+    // A row without a line changes no number of the run (threads): settings lines, the HUD and
+    // panel labels stay the same on every machine.
+    if (!spec.resolved() || !spec.takes.has(a) || std::string(spec.key) == "algorithm" || spec.line[0] == '\0') continue;
     const double v = spec.get(s);
     const bool dt = std::string(spec.key) == "dt";
     const bool shown = detail == LineDetail::Complete || spec.brief.has(a) || (dt && detail == LineDetail::Hud) ||

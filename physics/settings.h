@@ -156,7 +156,7 @@ struct SettingSpec {
   AlgorithmSet takes;     // the algorithms that read it
   SettingOrigin origin;
   // In settings lines: a number "κ=0.85" from "κ=%s"; a flag its word when on ("warm"); a
-  // choice "jacobians=%s". Brief lines show a setting for these algorithms always, else only
+  // choice "jacobians=%s"; "" for a setting no line shows (threads: it changes no number). Brief lines show a setting for these algorithms always, else only
   // when it differs from the algorithm's default.
   const char* line;
   AlgorithmSet brief;

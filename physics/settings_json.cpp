@@ -90,7 +90,14 @@ SolverSettings resolvedFromJson(const json& j, const std::string& where) {
   SolverSettings s;
   for (const SettingSpec& spec : settingTable()) {
     if (!spec.resolved()) continue;
-    if (!j.contains(spec.key)) throw std::invalid_argument(where + ": no " + spec.key);
+    if (!j.contains(spec.key)) {
+      // Records and recordings written before these settings existed ran on one thread, uncoloured.
+      if (spec.field == SettingField(&SolverSettings::threads) || spec.field == SettingField(&SolverSettings::colours)) {
+        spec.put(s, spec.defaultFor(Algorithm::A2));
+        continue;
+      }
+      throw std::invalid_argument(where + ": no " + spec.key);
+    }
     try {
       spec.put(s, settingFromJson(spec, j.at(spec.key)));
     } catch (const std::invalid_argument& e) {

@@ -142,9 +142,10 @@ void World::setSettings(const SolverSettings& settings) {
         "split_impulse: a1 solves position error in its MLCP's bias; split impulse is an option of a2-a5 (turn it off "
         "or choose --algo a2)");
   if (settings.algorithm != settings_.algorithm) stepper_ = makeStepper(settings.algorithm);
-  if (!pool_ || pool_->threads() != settings.threads) {
-    pool_ = std::make_unique<WorkerPool>(settings.threads);
-    narrowphases_.resize(static_cast<size_t>(settings.threads));
+  if (!pool_ || poolAsked_ != settings.threads) {
+    pool_ = std::make_unique<WorkerPool>(settings.threads);  // may hold fewer (physics/parallel.h)
+    poolAsked_ = settings.threads;
+    narrowphases_.resize(static_cast<size_t>(pool_->threads()));
     ctx_.pool = pool_.get();
     constraints_.setPool(pool_.get());
   }

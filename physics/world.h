@@ -117,7 +117,8 @@ class World {
   SolverSettings settings_;
   State state_;
   Broadphase broadphase_;
-  std::unique_ptr<WorkerPool> pool_;       // settings_.threads
+  std::unique_ptr<WorkerPool> pool_;       // settings_.threads (or fewer: WorkerPool)
+  int poolAsked_ = 0;                      // the threads it was made for
   std::vector<Narrowphase> narrowphases_;  // one per thread
   ManifoldCache manifolds_;
   ConstraintSet constraints_;

@@ -326,3 +326,26 @@ TEST(NumberText, ShortestRoundTrip) {
   EXPECT_EQ(numberText(1.0 / 3), "0.3333333333333333");
   EXPECT_EQ(numberText(-1e155), "-1e155");
 }
+
+// Records and recordings written before `threads` and `colours` existed still open: they ran on
+// one thread, uncoloured. And no settings line (the HUD, panel labels, record lines) names the
+// threads, which change no number of the run: a snapshot drawn on 2 cores and on 64 is the same.
+TEST(Schema, ThreadsAndColoursAreOptionalInOldRecordsAndThreadsInNoLine) {
+  SolverOverrides o;
+  o.set(&SolverSettings::algorithm, Algorithm::Soft);
+  SolverSettings st = resolve(o);
+  st.threads = 8;
+  st.colours = true;
+  nlohmann::json j = settingsJson(st);
+  j.erase("threads");
+  j.erase("colours");
+  const SolverSettings back = resolvedFromJson(j, "old.rec");
+  EXPECT_EQ(back.threads, 1);
+  EXPECT_FALSE(back.colours);
+  j.erase("dt");
+  EXPECT_THROW(resolvedFromJson(j, "old.rec"), std::invalid_argument);  // any other missing key is refused
+  for (LineDetail d : {LineDetail::Brief, LineDetail::Hud, LineDetail::Complete}) {
+    const std::string line = settingsLine(st, d);
+    EXPECT_EQ(line.find("threads"), std::string::npos) << line;
+  }
+}

@@ -46,8 +46,8 @@ std::string toolchain() {
 std::vector<std::string> sceneNames() {
   std::vector<std::string> names;
   const fs::path root = fs::path(SUBSTEP_SOURCE_DIR) / "assets/scenes";
-  // bench/pile_10000 is pile.json ten times over (and in the threads test at that size): its six
-  // runs would add a third to this test's time.
+  // bench/pile_10000 is pile.json ten times over: its six runs would add a third to this test's
+  // time.
   for (const auto& e : fs::recursive_directory_iterator(root))
     if (e.path().extension() == ".json" && e.path().stem() != "pile_10000")
       names.push_back(fs::relative(e.path(), root).replace_extension().string());

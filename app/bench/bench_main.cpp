@@ -1002,6 +1002,8 @@ nlohmann::json benchJson(const Options& opt, const BenchPlan& plan, const TimedR
 
 int bench(const Options& opt) {
   const std::vector<const Case*> cases = chooseCases(opt.algos, opt.scaling);
+  if (opt.scaling && opt.threads > 1)
+    throw UsageError("--threads: the scaling mode runs on one thread (run the piles with --scenes bench/pile_10000 --threads N)");
   if (opt.scaling) return scaling(cases, opt.sizes, opt.steps, opt.repeat, opt.json);
   if (!opt.json.empty()) checkJsonPath(opt.json);
   BenchPlan plan = planBench(opt.scenes, cases, opt.threads);

@@ -69,7 +69,7 @@ class SoftStepper final : public Stepper {
     kind_.resize(cs.rows.size());
     softOf_.resize(cs.rows.size());
     c0_.resize(cs.rows.size());
-    c.pool->forRange(cs.rows.size(), 1024, [&](size_t first, size_t last, int) {
+    pool(c).forRange(cs.rows.size(), 1024, [&](size_t first, size_t last, int) {
       for (size_t k = first; k < last; ++k) {
         const Row& r = cs.rows[k];
         kind_[k] = Kind::Joint;
@@ -80,7 +80,7 @@ class SoftStepper final : public Stepper {
         else if (r.lo == 0 && std::isinf(r.hi)) kind_[k] = Kind::Limit;  // joint limits: C from β
       }
     });
-    c.pool->forRange(cs.contacts.size(), 1024, [&](size_t first, size_t last, int) {
+    pool(c).forRange(cs.contacts.size(), 1024, [&](size_t first, size_t last, int) {
       for (size_t q = first; q < last; ++q) {
         const ContactDef& ct = cs.contacts[q];
         const size_t k = static_cast<size_t>(ct.row);
@@ -102,7 +102,7 @@ class SoftStepper final : public Stepper {
       startImpulses(c, j);
       for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = softSweep(c, solve);
       // Coordinates to the sub-step's end with the solved (biased) velocities.
-      c.pool->forRange(nb, 512, [&](size_t first, size_t last, int) {
+      pool(c).forRange(nb, 512, [&](size_t first, size_t last, int) {
         for (size_t i = first; i < last; ++i) {
           if (c.model->bodies[i].isStatic) continue;
           dpV_[i] += h * c.v[i];
@@ -182,7 +182,13 @@ class SoftStepper final : public Stepper {
     phaseCount_ = order == ContactOrder::Manifold ? 1 : 2;
     phases_[0] = order == ContactOrder::Manifold ? Phase::Both : c.settings->warmStart ? Phase::Friction : Phase::Normals;
     phases_[1] = c.settings->warmStart ? Phase::Normals : Phase::Friction;
-    change_.assign(static_cast<size_t>(c.pool->threads()) * kPad, 0.0);
+    change_.assign(static_cast<size_t>(pool(c).threads()) * kPad, 0.0);
+  }
+
+  // The step's threads; a context built without them (by hand, in a test) steps on one.
+  static WorkerPool& pool(StepContext& c) {
+    static WorkerPool alone(1);
+    return c.pool ? *c.pool : alone;
   }
 
   static bool moves(const StepContext& c, int body) { return c.mass[static_cast<size_t>(body)].invMass > 0; }
@@ -204,10 +210,12 @@ class SoftStepper final : public Stepper {
       const int first = start[static_cast<size_t>(col)], last = start[static_cast<size_t>(col) + 1];
       if (first == last) continue;
       if (col == ConstraintSet::kColours) {  // the overflow: in order, on this thread
-        for (int q = first; q < last; ++q) f(static_cast<size_t>(order[static_cast<size_t>(q)]), change_[0]);
+        double change = 0;
+        for (int q = first; q < last; ++q) f(static_cast<size_t>(order[static_cast<size_t>(q)]), change);
+        change_[0] = std::max(change_[0], change);
         continue;
       }
-      c.pool->forRange(static_cast<size_t>(last - first), kManifoldGrain, [&](size_t b, size_t e, int t) {
+      pool(c).forRange(static_cast<size_t>(last - first), kManifoldGrain, [&](size_t b, size_t e, int t) {
         double change = 0;  // the block's, kept here: threads writing neighbouring slots would share a cache line
         for (size_t q = b; q < e; ++q) f(static_cast<size_t>(order[static_cast<size_t>(first) + q]), change);
         double& mine = change_[static_cast<size_t>(t) * kPad];
@@ -266,6 +274,7 @@ class SoftStepper final : public Stepper {
       }
     }
     std::fill(change_.begin(), change_.end(), 0.0);
+    change_[0] = change;  // the joints': uncoloured, one running maximum over the sweep, as before
     for (int ph = 0; ph < phaseCount_; ++ph) {
       const Phase phase = phases_[ph];
       eachManifold(c, [&](size_t k, double& ch) {
