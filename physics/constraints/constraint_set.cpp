@@ -97,8 +97,8 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   manifoldPoint_.resize(nm + 1);
   manifoldPoint_[0] = 0;
   for (size_t k = 0; k < nm; ++k) manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
-  // The rows: in manifold order, or coloured, in the order the colours are solved in, so that a
-  // solve colour by colour streams through them.
+  // The rows: in manifold order, or coloured, by ascending colour (each colour's in manifold
+  // order), so that a colour's rows are one block of memory.
   colourManifolds(manifolds, mass, settings.algorithm == Algorithm::Soft && settings.colours);
   int at = static_cast<int>(next);
   for (size_t q = 0; q < nm; ++q) {
@@ -448,7 +448,8 @@ void formBlock(const Row* b, const double (&unscale)[4], const BodyMass* mass, b
 }  // namespace
 
 void ConstraintSet::finishAll(const std::vector<BodyMass>& mass, double applyScale) {
-  // Blocks and couplings numbered first, in unit order; then rows and units on the step's threads.
+  // Blocks and couplings numbered here, in unit order (finishUnit only fills them); then rows and
+  // units on the step's threads.
   for (SolveUnit& u : units) {
     if (u.kind == SolveUnit::Single || u.block >= 0) continue;
     if (u.kind == SolveUnit::Friction) {
@@ -489,20 +490,12 @@ void ConstraintSet::finishRows(int firstRow, int lastRow, const std::vector<Body
 void ConstraintSet::finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale) {
   if (u.kind == SolveUnit::Single) return;
   if (u.kind == SolveUnit::Friction) {
-    if (u.block < 0) {
-      u.block = static_cast<int>(couplings.size());
-      couplings.emplace_back();
-    }
     const Row* r = &rows[static_cast<size_t>(u.first)];
     couplings[static_cast<size_t>(u.block)] = {coupling(r[1], r[0]), coupling(r[2], r[0]), coupling(r[2], r[1])};
     return;
   }
   // A block's rows share their two bodies (one joint part, one manifold), so its Γ entries are
   // J̌ᵢ · M̌⁻¹J̌ₖᵀ with the latter already in the rows (scaled by applyScale: undone here).
-  if (u.block < 0) {
-    u.block = static_cast<int>(blocks.size());
-    blocks.emplace_back();
-  }
   BlockData& d = blocks[static_cast<size_t>(u.block)];
   const Row* b = &rows[static_cast<size_t>(u.first)];
   const double unscaleAll = applyScale > 0 ? 1 / applyScale : 0;

@@ -94,7 +94,7 @@ class SoftStepper final : public Stepper {
     dpV_.assign(nb, Vec3::Zero());
     dpW_.assign(nb, Vec3::Zero());
     c.subPoses = c.poses;
-    colour(c);
+    prepareSweeps(c);
     const Pass solve{true, h, st.pushOut}, relax{false, h, st.pushOut};
 
     for (int j = 0; j < n; ++j) {
@@ -172,7 +172,7 @@ class SoftStepper final : public Stepper {
   }
 
   // What a sweep needs of the step's colours (ConstraintSet::colourOrder).
-  void colour(StepContext& c) {
+  void prepareSweeps(StepContext& c) {
     const ConstraintSet& cs = *c.constraints;
     // The joints' solve units: those before the first contact unit.
     jointUnits_ = cs.joints.empty() ? 0 : cs.joints.back().firstUnit + cs.joints.back().units;
