@@ -101,11 +101,6 @@ std::string timeText(double t) {
   return buf;
 }
 
-// Quantities that only grow during a run: a run can stop once one is beyond its bound.
-bool growsOnly(const std::string& metric) {
-  return metric == "penetration" || metric == "joint_error" || metric == "joint_angle_error" || metric == "limit_excess" ||
-         metric == "displacement" || metric == "sideways" || metric == "speed";
-}
 
 }  // namespace
 
@@ -287,10 +282,8 @@ Advice advise(const Scene& scene, const AdviseOptions& o, const std::function<vo
           continue;
         }
         if (target.metric == "criteria") {
-          for (const auto& [name, at] : scene.criteria->pass) {
-            const std::optional<double> v = growsOnly(name) ? metricValue(m, name) : std::nullopt;
-            if (v && *v > at) return missedText(name, *v, at) + " at " + timeText(t);
-          }
+          const std::string missed = boundMissed(*scene.criteria, m);
+          if (!missed.empty()) return missed + " at " + timeText(t);
           continue;
         }
         if (!growsOnly(target.metric)) continue;

@@ -25,7 +25,7 @@ std::vector<std::string> atlasScenes(const std::string& folder) {
 }
 
 std::vector<AtlasCell> runAtlasScene(const Scene& scene, const std::vector<Method>& methods, double frameRate, int repeat,
-                                     const std::string& recordDir) {
+                                     const std::string& recordDir, bool verdictsOnly) {
   const double seconds = scene.criteria ? scene.criteria->seconds : 3;
   std::optional<PreparedReference> reference;
   if (scene.criteria && scene.criteria->reference) reference = prepareReference(scene, *scene.criteria->reference, seconds);
@@ -36,6 +36,8 @@ std::vector<AtlasCell> runAtlasScene(const Scene& scene, const std::vector<Metho
     setup.frameRate = frameRate;
     setup.repeat = repeat;
     setup.reference = reference ? &*reference : nullptr;
+    if (verdictsOnly && scene.criteria)
+      setup.stop = [&scene](const Metrics& m, double) { return boundMissed(*scene.criteria, m); };
     if (!recordDir.empty()) setup.recording = (std::filesystem::path(recordDir) / recordingFileName(scene, m.text)).string();
     const auto t0 = std::chrono::steady_clock::now();
     AtlasCell c;

@@ -27,9 +27,11 @@ struct AtlasCell {
 
 // One scene under every method, in order. frameRate > 0 keeps states for clips; a recordDir
 // gets a recording of every cell's run (recordingFileName). A reference the scene states is
-// prepared once (a converged run may refuse: ReferenceError).
+// prepared once (a converged run may refuse: ReferenceError). verdictsOnly stops a run once a
+// bound is missed for good (boundMissed): the verdicts are the same, the figures and the wall
+// times those of the run so far (the expected-table test; a 10-second pyramid_100 row otherwise).
 std::vector<AtlasCell> runAtlasScene(const Scene& scene, const std::vector<Method>& methods, double frameRate = 0,
-                                     int repeat = 1, const std::string& recordDir = "");
+                                     int repeat = 1, const std::string& recordDir = "", bool verdictsOnly = false);
 
 // The expected table (tests/data/atlas_expected.json): scene -> method -> "pass" / "fail" /
 // "refused". Reading it throws std::runtime_error naming the file.

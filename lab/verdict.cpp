@@ -38,6 +38,19 @@ Check checkAtMost(const std::string& name, std::optional<double> value, double b
   return c;
 }
 
+bool growsOnly(const std::string& metric) {
+  return metric == "penetration" || metric == "joint_error" || metric == "joint_angle_error" || metric == "limit_excess" ||
+         metric == "displacement" || metric == "sideways" || metric == "speed";
+}
+
+std::string boundMissed(const SceneCriteria& c, const Metrics& m) {
+  for (const auto& [name, bound] : c.pass) {
+    const std::optional<double> v = growsOnly(name) ? metricValue(m, name) : std::nullopt;
+    if (v && *v > bound) return comparisonText(name, *v, ">", bound);
+  }
+  return "";
+}
+
 bool hasChecks(const SceneCriteria& c) { return !c.pass.empty() || c.moving || c.stayIn || c.turns; }
 
 Verdict judge(const Scene& scene, const RunResult& run) {

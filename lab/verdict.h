@@ -38,6 +38,14 @@ bool hasChecks(const SceneCriteria& c);
 // A "pass" bound of the criteria: the metric `name` at most `bound` (not ok when not measured).
 Check checkAtMost(const std::string& name, std::optional<double> value, double bound);
 
+// Metrics that only grow during a run (the largest so far): once one is beyond its bound, the
+// check fails whatever the rest of the run does.
+bool growsOnly(const std::string& metric);
+
+// The first "pass" bound already missed by a metric that only grows ("max penetration 3.10 cm >
+// 3.00 cm"); empty while every bound may still hold. A run may stop there: judged, it fails.
+std::string boundMissed(const SceneCriteria& c, const Metrics& m);
+
 // Refused when the method cannot run the scene; no verdict (NoCriteria) when the scene states no
 // check (no criteria, or criteria without pass bounds); else pass when the run stayed finite,
 // did not diverge, and met every check.
