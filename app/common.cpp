@@ -94,6 +94,11 @@ SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& cl) {
 SolverOverrides onEveryCore(const Scene& scene, SolverOverrides given) {
   const SettingSpec& threads = settingOf(&SolverSettings::threads);
   if (scene.solver.has(threads) || given.has(threads)) return given;
+  // Below a few thousand moving bodies handing the work out costs more than it saves: on 2
+  // threads the 210-box pyramid stepped at 0.72x, the 820-box one at 0.81x, the 10 000-box pile
+  // at 1.2-1.3x (docs/benchmarks.md, "Threads").
+  const auto moving = std::count_if(scene.model.bodies.begin(), scene.model.bodies.end(), [](const Body& b) { return !b.isStatic; });
+  if (moving < kEveryCoreFromBodies) return given;
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   given.set(threads, std::min<double>(cores, limits::kMaxThreads));
   return given;

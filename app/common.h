@@ -45,8 +45,10 @@ CLI::Validator finiteIn(double lo, double hi);
 // the algorithm's defaults. Throws UsageError.
 SolverSettings resolveSettings(const Scene& scene, const SolverOverrides& commandLine);
 
-// `given` with threads set to the machine's cores unless the scene or `given` sets it: what
-// serve and render step with (the trajectory is the same on any number of threads).
+// `given` with threads set to the machine's cores for a scene of kEveryCoreFromBodies moving
+// bodies or more, unless the scene or `given` sets it: what serve and render step with (the
+// trajectory is the same on any number of threads).
+constexpr long kEveryCoreFromBodies = 3000;
 SolverOverrides onEveryCore(const Scene& scene, SolverOverrides given);
 
 // Loads a scene, turning its errors into UsageError.

@@ -31,6 +31,11 @@ static int usableThreads(int asked) {
   return std::max(1, std::min(asked, 2 * cores));
 }
 
+WorkerPool& WorkerPool::callerOnly() {
+  static WorkerPool alone(1);
+  return alone;
+}
+
 WorkerPool::WorkerPool(int threads) : threads_(usableThreads(threads)) {
   try {
     for (int t = 1; t < threads_; ++t) workers_.emplace_back([this, t] { work(t); });

@@ -30,6 +30,10 @@ class WorkerPool {
 
   int threads() const { return threads_; }
 
+  // A pool of the caller alone, for code given no pool (a hand-built context, a test): shared by
+  // every thread, since it never hands anything out.
+  static WorkerPool& callerOnly();
+
   // f(block, thread) for every block in [0, blocks); thread in [0, threads()), 0 the caller.
   // Returns when all are done; rethrows the first exception a block threw.
   template <class F>

@@ -233,13 +233,15 @@ std::vector<SettingSpec> makeTable() {
        &S::sleep, same(0), {}},
       {"colours", "", "colours", K::Flag, {0, 0}, {}, {A::Soft}, O::Extension, "colours", kNone,
        "soft: solve the contacts colour by colour (Box2D v3's graph colouring: no two manifolds of a colour share a "
-       "moving body), each colour's spread over the threads; off: in the step's order, on one thread. A different "
+       "moving body), each colour's spread over the threads; off: in the step's order (islands spread over the "
+       "threads). A different "
        "order: on the 100-level pyramid a box slides 65 cm in 10 s with it, 22 cm without (docs/algorithms.md)",
        &S::colours, same(0), {}},
       {"threads", "", "threads", K::Integer, {1, limits::kMaxThreads}, {}, kEvery, O::Limit, "", kNone,
-       "Threads a step runs on: the narrowphase, the formulation and the soft step's contact colours are shared "
-       "out; the trajectory is the same to the last bit for any number (1 in the bench and the lab; serve and "
-       "render: the machine's cores)",
+       "Threads a step runs on: the broadphase's queries, the narrowphase, the formulation, the soft step's "
+       "contact colours or islands and A5's islands are shared out; the trajectory is the same to the last bit for "
+       "any number (1 in the bench and the lab; serve and render: the machine's cores for scenes of 3000 moving "
+       "bodies or more)",
        &S::threads, same(1), {}},
       {"direct_max_rows", "", "direct-max-rows", K::Integer, {1, 20000}, {}, {A::A1}, O::Limit, "rows<=%s", kNone,
        "a1: the largest MLCP it forms as a dense matrix [rows]; larger scenes are refused", &S::directMaxRows,

@@ -175,7 +175,7 @@ bool World::geometry() {
   }
   broadphase_.update(state_, reach_, move_, fall);
   const size_t cap = std::max<size_t>(limits::kMinPairCap, limits::kMaxPairsPerBody * model_.bodies.size());
-  if (!broadphase_.findPairs(pairs_, cap)) {
+  if (!broadphase_.findPairs(pairs_, cap, *pool_)) {
     report_.finite = false;
     report_.overloaded = true;
     report_.problem = "more than " + std::to_string(cap) + " pairs of bodies overlap (" +

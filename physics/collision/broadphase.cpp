@@ -147,7 +147,7 @@ void Broadphase::update(const State& state, const std::vector<double>& reach, co
   }
 }
 
-bool Broadphase::findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPairs) {
+bool Broadphase::findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPairs, WorkerPool& pool) {
   pairs.clear();
   // Candidates whose fat boxes came apart are dropped; the moved bodies' new neighbours added.
   if (!movedList_.empty()) {
@@ -155,14 +155,43 @@ bool Broadphase::findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPa
     for (const auto& pr : candidates_)
       if (fat_[static_cast<size_t>(pr.first)].overlaps(fat_[static_cast<size_t>(pr.second)])) candidates_[keep++] = pr;
     candidates_.resize(keep);
+    // Each block of moved bodies queries the tree into its own list and sorts it; the lists are
+    // then merged. The result is a sorted set, whatever the blocks and threads.
+    const size_t cap = 4 * maxPairs;
+    constexpr size_t kGrain = 32;
+    const size_t blocks = (movedList_.size() + kGrain - 1) / kGrain;
+    if (blockFound_.size() < blocks) blockFound_.resize(blocks);
+    pool.forBlocks(blocks, [&](size_t b, int) {
+      std::vector<std::pair<int, int>>& found = blockFound_[b];
+      found.clear();
+      Query q{&objects_, &found, cap, this,
+              [](const void* self, int i, int j) { return static_cast<const Broadphase*>(self)->admitted(i, j); }};
+      const size_t last = std::min(movedList_.size(), (b + 1) * kGrain);
+      for (size_t k = b * kGrain; k < last && found.size() <= cap; ++k)
+        manager_.collide(objects_[static_cast<size_t>(movedList_[k])].get(), &q, collectCandidate);
+      std::sort(found.begin(), found.end());  // duplicates kept: the cap counts them, as one list would
+    });
+    // The blocks' sorted lists, end to end, merged pairwise bottom up (runs_: where each starts).
     found_.clear();
-    Query q{&objects_, &found_, 4 * maxPairs, this,
-            [](const void* self, int i, int j) { return static_cast<const Broadphase*>(self)->admitted(i, j); }};
-    for (const int i : movedList_) {
-      manager_.collide(objects_[static_cast<size_t>(i)].get(), &q, collectCandidate);
-      if (found_.size() > q.cap) return false;
+    runs_.assign(1, 0);
+    for (size_t b = 0; b < blocks; ++b) {
+      found_.insert(found_.end(), blockFound_[b].begin(), blockFound_[b].end());
+      if (found_.size() > cap) return false;
+      runs_.push_back(found_.size());
     }
-    std::sort(found_.begin(), found_.end());
+    while (runs_.size() > 2) {
+      mergeBuffer_.resize(found_.size());
+      nextRuns_.assign(1, 0);
+      for (size_t r = 0; r + 1 < runs_.size(); r += 2) {
+        const size_t mid = runs_[r + 1], end = r + 2 < runs_.size() ? runs_[r + 2] : mid;
+        std::merge(found_.begin() + static_cast<long>(runs_[r]), found_.begin() + static_cast<long>(mid),
+                   found_.begin() + static_cast<long>(mid), found_.begin() + static_cast<long>(end),
+                   mergeBuffer_.begin() + static_cast<long>(runs_[r]));
+        nextRuns_.push_back(end);
+      }
+      found_.swap(mergeBuffer_);
+      runs_.swap(nextRuns_);
+    }
     found_.erase(std::unique(found_.begin(), found_.end()), found_.end());
     merged_.clear();
     std::set_union(candidates_.begin(), candidates_.end(), found_.begin(), found_.end(), std::back_inserter(merged_));

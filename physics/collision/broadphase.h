@@ -18,6 +18,7 @@
 
 #include "physics/collision/shape_geometry.h"
 #include "physics/model.h"
+#include "physics/parallel.h"
 #include "physics/state.h"
 
 #include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
@@ -40,7 +41,9 @@ class Broadphase {
   // Pairs (i < j by body index) whose reach boxes overlap, in increasing order: the order is the
   // solve order downstream, so it does not depend on the tree. Returns false, with the pairs found
   // so far, when there are more than maxPairs (bodies started inside each other).
-  bool findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPairs);
+  // The moved bodies' queries of the tree (read only) are shared out on `pool` in blocks; the
+  // pairs are the same on any number of threads.
+  bool findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPairs, WorkerPool& pool = WorkerPool::callerOnly());
   const CollisionShape& shape(int body) const { return shapes_[static_cast<size_t>(body)]; }
 
   // For tests and metrics: bodies moved in the tree by the last update, candidate pairs kept.
@@ -72,9 +75,11 @@ class Broadphase {
   fcl::DynamicAABBTreeCollisionManagerd manager_;
   std::vector<std::pair<int, int>> excluded_;    // sorted joint pairs that do not collide
   std::vector<std::pair<int, int>> candidates_;  // sorted pairs whose fat boxes overlap
-  // Scratch, kept so that a settled step allocates nothing: new candidates of moved bodies, the
-  // merged list, the moved bodies' tree objects.
-  std::vector<std::pair<int, int>> found_, merged_;
+  // Scratch, kept so that a settled step allocates nothing: new candidates of moved bodies (per
+  // block of them, then all), the merged list, the moved bodies' tree objects.
+  std::vector<std::vector<std::pair<int, int>>> blockFound_;
+  std::vector<std::pair<int, int>> found_, merged_, mergeBuffer_;
+  std::vector<size_t> runs_, nextRuns_;
   std::vector<fcl::CollisionObjectd*> movedObjects_;
 };
 

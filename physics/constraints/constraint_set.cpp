@@ -207,7 +207,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   for (size_t k = 0; k < frictions.size(); ++k)
     if (frictions[k].unit >= 0)
       blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)].lastMask = manifolds[k].blockMask;
-  findIslands(settings.islands && settings.algorithm == Algorithm::A5);  // only A5 reads them
+  // A5 solves island by island; the soft step, uncoloured, shares the islands out among its
+  // threads (coloured, the colours share the manifolds out).
+  const bool softIslands = settings.algorithm == Algorithm::Soft && colourStart.empty() && pool_ && pool_->threads() > 1;
+  findIslands((settings.islands && settings.algorithm == Algorithm::A5) || softIslands);
 }
 
 void ConstraintSet::colourManifolds(const std::vector<Manifold>& manifolds, const std::vector<BodyMass>& mass, bool on) {
@@ -359,6 +362,13 @@ ConstraintPart ConstraintSet::island(int k) const {
           {islandRows_.data() + a.rows, 0, b.rows - a.rows},
           {islandBodies_.data() + a.bodies, 0, b.bodies - a.bodies},
           {islandJoints_.data() + a.joints, 0, b.joints - a.joints}};
+}
+
+IndexRange ConstraintSet::islandManifolds(int k) const {
+  if (islands_.size() == 2) return {nullptr, 0, static_cast<int>(frictions.size())};
+  const Island& a = islands_[static_cast<size_t>(k)];
+  const Island& b = islands_[static_cast<size_t>(k) + 1];
+  return {islandManifolds_.data() + a.manifolds, 0, b.manifolds - a.manifolds};
 }
 
 ConstraintPart ConstraintSet::whole(size_t bodies) const {

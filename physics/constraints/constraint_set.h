@@ -84,10 +84,12 @@ class ConstraintSet {
   // Islands: bodies that constraints join, directly or through other bodies (a static body joins
   // nothing), found by union-find over the manifolds and joints in build(). Dynamic bodies that touch nothing
   // are islands of their own. Numbered by their lowest body; each one's units, rows, bodies and
-  // joints keep the step's order. With SolverSettings::islands off, one island holds everything.
+  // joints keep the step's order. Found for A5 (SolverSettings::islands; off: one island holds
+  // everything) and for the soft step on more than one thread, uncoloured.
   int islandCount() const { return static_cast<int>(islands_.size()) - 1; }
   ConstraintPart island(int k) const;  // a single island is whole()
   ConstraintPart whole(size_t bodies) const;  // every unit, row, body (static ones too) and joint
+  IndexRange islandManifolds(int k) const;    // island k's manifolds (in frictions), in the step's order
 
   // The soft step's colours (SolverSettings::colours; else empty): the manifolds ordered so that
   // no two of a colour share a body that moves, colour k's at colourOrder[colourStart[k] ..

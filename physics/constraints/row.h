@@ -126,8 +126,18 @@ __attribute__((always_inline)) inline void applyImpulse(const Row& r, double dl,
   vB -= dl * (r.mB * r.lin);
   wB += dl * r.mAngB;
 }
+// Velocities back to the row's bodies that move. A static (or sleeping) body's M̌⁻¹ is zero, so
+// its velocity would come back unchanged: left unwritten, it is read-only to the solve, and
+// islands that share it (the ground) can be solved on different threads.
+__attribute__((always_inline)) inline void storeMoving(const Row& r, const Vec3& vA, const Vec3& wA, const Vec3& vB,
+                                                       const Vec3& wB, Vec3* v, Vec3* w) {
+  if (r.mA != 0) v[r.a] = vA, w[r.a] = wA;
+  if (r.mB != 0) v[r.b] = vB, w[r.b] = wB;
+}
 __attribute__((always_inline)) inline void applyImpulse(const Row& r, double dl, Vec3* v, Vec3* w) {
-  applyImpulse(r, dl, v[r.a], w[r.a], v[r.b], w[r.b]);
+  Vec3 vA = v[r.a], wA = w[r.a], vB = v[r.b], wB = w[r.b];
+  applyImpulse(r, dl, vA, wA, vB, wB);
+  storeMoving(r, vA, wA, vB, wB, v, w);
 }
 
 // Fills M̌⁻¹J̌ᵀ (scaled by applyScale: the report's boxed κM̌⁻¹ in A5, else 1) and the effective

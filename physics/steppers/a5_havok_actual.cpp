@@ -50,11 +50,29 @@ class HavokActualStepper final : public Stepper {
     // rows in cache: the same arithmetic in the same order within each island, so the same
     // numbers as all at once. The stable-row prediction works on every body at once: one part.
     // (A step that is one island, a pyramid, gets the whole without index lists from island(0).)
+    // On more than one thread the islands are shared out: an island's rows and moving bodies are
+    // its own, and static ones are only read (solves write back moving bodies alone).
+    WorkerPool& pool = c.pool ? *c.pool : WorkerPool::callerOnly();
+    parts_.resize(static_cast<size_t>(pool.threads()));
+    for (PartScratch& s : parts_) s.residual = 0;
     if (stableOnly) {
-      solvePart(c, cs.whole(nb), stableOnly);
+      solvePart(c, cs.whole(nb), stableOnly, parts_[0]);
+    } else if (pool.threads() == 1 || cs.islandCount() == 1) {
+      for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly, parts_[0]);
     } else {
-      for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly);
+      if (st.warmStart && c.rowsHeld) {  // sized here once, not by each island at once
+        c.startV.resize(nb), c.startW.resize(nb), c.impV.resize(nb), c.impW.resize(nb);
+      }
+      // Runs of neighbouring islands a thread, not one: islands next to each other on two
+      // threads share the cache lines of their boundary bodies (velocities, sums, sub-steps).
+      const size_t islands = static_cast<size_t>(cs.islandCount());
+      const size_t grain = std::max<size_t>(1, islands / (16 * static_cast<size_t>(pool.threads())));
+      pool.forRange(islands, grain, [&](size_t first, size_t last, int thread) {
+        for (size_t k = first; k < last; ++k)
+          solvePart(c, cs.island(static_cast<int>(k)), stableOnly, parts_[static_cast<size_t>(thread)]);
+      });
     }
+    for (const PartScratch& s : parts_) c.stats.residual = std::max(c.stats.residual, s.residual);
     c.stats.iterations = n * st.iterations;
     const size_t last = static_cast<size_t>(n - 1) * nb;
     applyRestitution(c, &c.subV[last], &c.subW[last], kappa);
@@ -65,7 +83,19 @@ class HavokActualStepper final : public Stepper {
 
  private:
   // Sub-steps 1..n of one part of the step (an island, or all of it).
-  void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly) {
+  // What solving a part needs of its own: the rows it refreshes, its last sweep's largest change.
+  struct Refreshed {
+    size_t row;
+    double base;  // targets: c·target; speculative rows: β¹
+  };
+  struct PartScratch {
+    std::vector<Refreshed> targets, speculative;
+    double residual = 0;
+  };
+
+  void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly, PartScratch& scratch) {
+    std::vector<Refreshed>& targets = scratch.targets;
+    std::vector<Refreshed>& speculative = scratch.speculative;
     ConstraintSet& cs = *c.constraints;
     const SolverSettings& st = *c.settings;
     const int n = c.n(), m = st.iterations;
@@ -75,15 +105,15 @@ class HavokActualStepper final : public Stepper {
     const size_t nb = c.bodies();
     // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
     // their bias back each sub-step are listed with what they need.
-    targets_.clear();
-    speculative_.clear();
+    targets.clear();
+    speculative.clear();
     forEach(part.rows, [&](size_t k) {
       Row& r = cs.rows[k];
       const bool exact = r.velocityTarget && st.motorUnscaled;  // solved with κ = τ = 1
       // A target row's bias is its base already (friction: 0); it moves only with J̌šʲ, which stays
       // zero when τ = 0.
-      if (r.velocityLevel && ratio != 0) targets_.push_back({k, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
-      if (r.speculative) speculative_.push_back({k, r.bias});
+      if (r.velocityLevel && ratio != 0) targets.push_back({k, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
+      if (r.speculative) speculative.push_back({k, r.bias});
       if (exact) return;
       r.bias *= ratio;
       if (r.normalRow < 0) {  // friction bounds are μ times the normal's λ̄ already
@@ -97,11 +127,11 @@ class HavokActualStepper final : public Stepper {
       // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step, and š stays zero when τ = 0.
       const bool shifted = j > 0 && ratio != 0;
       if (shifted)
-        for (const Refreshed& f : targets_) {
+        for (const Refreshed& f : targets) {
           Row& r = cs.rows[f.row];
           r.bias = f.base + rowVelocity(r, sumV_.data(), sumW_.data());
         }
-      for (const Refreshed& f : speculative_) {
+      for (const Refreshed& f : speculative) {
         Row& r = cs.rows[f.row];
         const double shift = shifted ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;                // J̌šʲ
         const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
@@ -110,7 +140,7 @@ class HavokActualStepper final : public Stepper {
       for (int i = 0; i < m && part.units.count > 0; ++i) {
         if (stableOnly) predictStableRows(c);
         const double change = sweep(cs, part.units, c.v, c.w, SweepScales{});
-        if (j + 1 == n && i + 1 == m) c.stats.residual = std::max(c.stats.residual, change);  // the last sweep's
+        if (j + 1 == n && i + 1 == m) scratch.residual = std::max(scratch.residual, change);  // the last sweep's
       }
       endSubStepImpulses(c, part);
       // v̌ʲ = ŵʲ - šʲ, recorded for s4; then šʲ⁺¹ and ŵʲ⁺¹.
@@ -142,11 +172,6 @@ class HavokActualStepper final : public Stepper {
       if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
     });
   }
-
-  struct Refreshed {
-    size_t row;
-    double base;  // targets: c·target; speculative rows: β¹
-  };
 
   // The 'stable' parts of every joint (joints.h: unbounded rows), for JacobianRefresh::Stable.
   void collectStableRows(const StepContext& c) {
@@ -194,7 +219,7 @@ class HavokActualStepper final : public Stepper {
     const ConstraintSet::JointRef* ref;
     int offset, size;
   };
-  std::vector<Refreshed> targets_, speculative_;
+  std::vector<PartScratch> parts_;  // per thread
   std::vector<Vec3> sumV_, sumW_;  // 'SumVelocity' š, linear and angular
   std::vector<Vec3> rawV_, rawW_;  // Σ_{k<j} v̌ᵏ unscaled: speculative rows' βʲ
   std::vector<StableRows> stable_;

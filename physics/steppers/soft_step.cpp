@@ -20,7 +20,9 @@
 // SolverSettings::colours, colour by colour as Box2D v3's solver.c does: no two manifolds of a
 // colour share a moving body, and each colour's (in the step's order) are solved on the step's
 // threads. Within a colour no manifold reads what another writes, so the trajectory is the same
-// to the last bit for any number of threads.
+// to the last bit for any number of threads. Uncoloured on more than one thread, the islands'
+// manifolds go to the threads island by island, each island's in the step's order: the same
+// trajectory again (a pile of separate stacks spreads; a pyramid, one island, does not).
 #include "physics/steppers/stepper.h"
 
 #include <algorithm>
@@ -186,10 +188,7 @@ class SoftStepper final : public Stepper {
   }
 
   // The step's threads; a context built without them (by hand, in a test) steps on one.
-  static WorkerPool& pool(StepContext& c) {
-    static WorkerPool alone(1);
-    return c.pool ? *c.pool : alone;
-  }
+  static WorkerPool& pool(StepContext& c) { return c.pool ? *c.pool : WorkerPool::callerOnly(); }
 
   static bool moves(const StepContext& c, int body) { return c.mass[static_cast<size_t>(body)].invMass > 0; }
 
@@ -199,8 +198,28 @@ class SoftStepper final : public Stepper {
   void eachManifold(StepContext& c, F f) {
     const std::vector<int>& order = c.constraints->colourOrder;
     const std::vector<int>& start = c.constraints->colourStart;
-    if (start.empty()) {  // not coloured: in the step's order, on this thread
-      for (size_t k = 0; k < c.constraints->frictions.size(); ++k) f(k, change_[0]);
+    if (start.empty()) {  // not coloured: in the step's order
+      const ConstraintSet& cs = *c.constraints;
+      const int islands = cs.islandCount();
+      if (islands <= 1 || pool(c).threads() == 1) {
+        for (size_t k = 0; k < cs.frictions.size(); ++k) f(k, change_[0]);
+        return;
+      }
+      // Islands share no body that moves: each island's manifolds in the step's order, the
+      // islands spread over the threads, give the numbers of the serial order, and one running
+      // maximum per thread the same largest change. About kIslandGrain manifolds a block: blocks
+      // of neighbouring islands on different threads share the cache lines of their boundary
+      // bodies' velocities, which cost more than the sweep saved with blocks of 32.
+      const size_t grain = std::max<size_t>(1, static_cast<size_t>(islands) * kIslandGrain / std::max<size_t>(1, cs.frictions.size()));
+      pool(c).forRange(static_cast<size_t>(islands), grain, [&](size_t b, size_t e, int t) {
+        double change = 0;
+        for (size_t i = b; i < e; ++i) {
+          const IndexRange list = cs.islandManifolds(static_cast<int>(i));
+          for (int q = 0; q < list.count; ++q) f(static_cast<size_t>(list[q]), change);
+        }
+        double& mine = change_[static_cast<size_t>(t) * kPad];
+        mine = std::max(mine, change);
+      });
       return;
     }
     // From the highest colour down, the overflow last: the manifolds with a static body first,
@@ -306,7 +325,8 @@ class SoftStepper final : public Stepper {
   }
 
   enum class Phase : unsigned char { Both, Normals, Friction };
-  static constexpr size_t kManifoldGrain = 32;  // manifolds a thread takes at a time
+  static constexpr size_t kManifoldGrain = 32;  // manifolds of a colour a thread takes at a time
+  static constexpr size_t kIslandGrain = 512;   // manifolds of whole islands a thread takes at a time
   Phase phases_[2] = {Phase::Both, Phase::Both};  // a sweep's passes over the manifolds (no allocation a step)
   int phaseCount_ = 1;
   int jointUnits_ = 0;

@@ -202,7 +202,7 @@ __attribute__((always_inline)) inline void solveUnit(ConstraintSet& cs, const So
   Vec3 va = v[ia], wa = w[ia], vb = v[ib], wb = w[ib];
   if (u.kind == SolveUnit::Friction) {  // friction rows are never speculative nor motors
     solveFrictionUnit(cs.couplings[static_cast<size_t>(u.block)], &rows[u.first], rows, va, wa, vb, wb, k.bias, k.vel, change);
-    v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
+    storeMoving(rows[u.first], va, wa, vb, wb, v, w);
     return;
   }
   // Blocks: a joint's stable part (2 or 3 rows) or a manifold's normal rows (2 to 4).
@@ -212,7 +212,7 @@ __attribute__((always_inline)) inline void solveUnit(ConstraintSet& cs, const So
     case 3: solveBlockUnit<3>(cs, u, r, k, va, wa, vb, wb, change); break;
     default: solveBlockUnit<4>(cs, u, r, k, va, wa, vb, wb, change); break;
   }
-  v[ia] = va, w[ia] = wa, v[ib] = vb, w[ib] = wb;
+  storeMoving(*r, va, wa, vb, wb, v, w);
 }
 
 }  // namespace

@@ -145,7 +145,7 @@ inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment incr
   r.pushed = r.pushed || next > 0;
   if (dl == 0) return 0;
   applyImpulse(r, dl, va, wa, vb, wb);
-  v[r.a] = va, w[r.a] = wa, v[r.b] = vb, w[r.b] = wb;
+  storeMoving(r, va, wa, vb, wb, v, w);
   return r.effMass > 0 ? std::abs(dl) / r.effMass : 0;
 }
 
