@@ -5,9 +5,10 @@ SUBSTEP_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
 # Every package the build, the tests, the benchmark and the demo use. The install tests: cpack's
 # Debian package needs dpkg-shlibdeps (dpkg-dev) and file; the sweep tests compare records with jq
-# and run a single-node Slurm cluster (slurm-wlm: slurmctld, slurmd, the client; munge).
+# and run a single-node Slurm cluster (slurm-wlm: slurmctld, slurmd, the client; munge). ccache:
+# a rebuild compiles only what changed (CMakeLists.txt).
 SUBSTEP_PACKAGES=(
-  cmake ninja-build g++ pkg-config
+  cmake ninja-build g++ pkg-config ccache
   libeigen3-dev libfcl-dev libccd-dev libassimp-dev
   libosmesa6-dev libstb-dev libturbojpeg0-dev fonts-dejavu-core
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libcpp-httplib-dev
