@@ -89,7 +89,8 @@ void checkSceneOptions(const SnapshotOptions& o) {
     throw UsageError("expected a scene file (substep snapshot SCENE --at T --golden DIR) or --compare A.png B.png");
   if (isRecordingPath(o.draw.scene))
     throw UsageError(o.draw.scene + ": snapshot tests step scene files; draw a recording with substep render " +
-                     o.draw.scene + " -o frame.png --at T");  if (o.at.empty()) throw UsageError("--at: give the simulated times of the frames to check, e.g. --at 0.5,1.0");
+                     o.draw.scene + " -o frame.png --at T");
+  if (o.at.empty()) throw UsageError("--at: give the simulated times of the frames to check, e.g. --at 0.5,1.0");
   if (o.golden.empty()) throw UsageError("--golden: give the folder of the golden images, e.g. --golden tests/goldens");
 }
 

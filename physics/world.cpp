@@ -200,11 +200,9 @@ bool World::geometry() {
   // are the same for any number of threads.
   constexpr size_t kPairBlock = 64;
   const size_t blocks = (np + kPairBlock - 1) / kPairBlock;
-  if (blockManifolds_.size() < blocks) blockManifolds_.resize(blocks);
-  blockCached_.assign(blocks, 0);
-  blockNew_.assign(blocks, 0);
+  if (pairBlocks_.size() < blocks) pairBlocks_.resize(blocks);
   pool_->forBlocks(blocks, [&](size_t blk, int thread) {
-    std::vector<Manifold>& out = blockManifolds_[blk];
+    std::vector<Manifold>& out = pairBlocks_[blk].manifolds;
     out.clear();
     int cached = 0, fresh = 0;
     ContactPatch patch;
@@ -238,32 +236,32 @@ bool World::geometry() {
       out.emplace_back();
       ManifoldCache::made(out.back(), a, b, pA, pB, std::sqrt(A.friction * B.friction),
                           std::max(A.restitution, B.restitution), patch, rB, old);
-      for (int p = 0; p < out.back().count; ++p) fresh += out.back().points[p].id == 0;
+      fresh += newPoints(out.back());
     }
-    blockCached_[blk] = cached;  // once: threads counting into neighbouring slots would share a cache line
-    blockNew_[blk] = fresh;
+    pairBlocks_[blk].cached = cached;  // once: threads counting into neighbouring blocks would share a cache line
+    pairBlocks_[blk].fresh = fresh;
   });
   // Where each block's manifolds go and the id its first new point takes; then placed.
-  blockAt_.resize(blocks + 1);
-  blockId_.resize(blocks);
-  blockAt_[0] = 0;
-  uint32_t newPoints = 0;
+  size_t at = 0;
+  uint32_t fresh = 0;
   report_.cachedPairs = 0;
   for (size_t blk = 0; blk < blocks; ++blk) {
-    blockAt_[blk + 1] = blockAt_[blk] + blockManifolds_[blk].size();
-    blockId_[blk] = newPoints;
-    newPoints += static_cast<uint32_t>(blockNew_[blk]);
-    report_.cachedPairs += blockCached_[blk];
+    PairBlock& b = pairBlocks_[blk];
+    b.at = at;
+    b.firstId = fresh;
+    at += b.manifolds.size();
+    fresh += static_cast<uint32_t>(b.fresh);
+    report_.cachedPairs += b.cached;
   }
-  const uint32_t firstId = manifolds_.claimIds(newPoints);
-  std::vector<Manifold>& placed = manifolds_.place(blockAt_[blocks]);
+  const uint32_t firstId = manifolds_.claimIds(fresh);
+  std::vector<Manifold>& placed = manifolds_.place(at);
   pool_->forBlocks(blocks, [&](size_t blk, int) {
-    uint32_t id = firstId + blockId_[blk];
-    Manifold* to = placed.data() + blockAt_[blk];
-    for (const Manifold& m : blockManifolds_[blk]) {
+    const PairBlock& b = pairBlocks_[blk];
+    uint32_t id = firstId + b.firstId;
+    Manifold* to = placed.data() + b.at;
+    for (const Manifold& m : b.manifolds) {
       *to = m;
-      for (int p = 0; p < to->count; ++p)
-        if (to->points[p].id == 0) to->points[p].id = id++;
+      id = numberNewPoints(*to, id);
       ++to;
     }
   });

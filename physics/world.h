@@ -126,10 +126,14 @@ class World {
   StepContext ctx_;
   std::vector<std::pair<int, int>> pairs_;       // this step's, (A, B) as the manifold has them
   std::vector<const Manifold*> olds_;            // per pair: last step's manifold, or null
-  std::vector<std::vector<Manifold>> blockManifolds_;  // s1's manifolds by block of pairs
-  std::vector<int> blockCached_, blockNew_;      // ... how many of each block were kept, its new points
-  std::vector<size_t> blockAt_;                  // ... where each block's go in the step's list
-  std::vector<uint32_t> blockId_;                // ... the id of each block's first new point, from the step's first
+  // s1's manifolds by block of pairs (a thread's share), then placed in the step's list.
+  struct PairBlock {
+    std::vector<Manifold> manifolds;  // the block's, in pair order
+    int cached = 0, fresh = 0;        // how many were kept from last step; their new points
+    size_t at = 0;                    // where the block's manifolds go in the step's list
+    uint32_t firstId = 0;             // the id of its first new point, from the step's first
+  };
+  std::vector<PairBlock> pairBlocks_;  // storage kept between steps
   std::vector<double> reach_;  // per body: how far turning moves a point this step, plus half the margin [m]
   std::vector<Vec3> move_;     // per body: h v, its free-flight move this step without gravity [m]
   std::vector<Vec3> approachV_;  // per body: the velocity restitution measures approach speeds with

@@ -25,7 +25,6 @@ using namespace substep::lab;
 namespace {
 
 const std::string kScenes = SUBSTEP_SOURCE_DIR "/assets/scenes";
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kG = 9.81;  // [m/s²], the scenes' gravity
 
 Scene sceneFrom(const std::string& json) { return parseScene(json, "t.json", "."); }

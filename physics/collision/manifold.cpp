@@ -69,8 +69,7 @@ void ManifoldCache::kept(Manifold& m, const Manifold& old, const Frame& poseA, c
 }
 
 void ManifoldCache::take(Manifold& m) {
-  for (int i = 0; i < m.count; ++i)
-    if (m.points[i].id == 0) m.points[i].id = nextId_++;
+  nextId_ = numberNewPoints(m, nextId_);
   current_.push_back(m);
 }
 

@@ -59,6 +59,19 @@ double pairShift(const Manifold& m, const Pose& poseA, const Pose& poseB);
 bool pairShiftBelow(const Manifold& m, const Pose& poseA, const Pose& poseB, double limit);
 
 // Builds this step's manifolds from narrowphase patches, matching them with last step's.
+// A manifold's new points (id 0, as made() leaves them): how many; and numbered `next`, next + 1,
+// ... in point order, returning the id after the last.
+inline int newPoints(const Manifold& m) {
+  int k = 0;
+  for (int i = 0; i < m.count; ++i) k += m.points[i].id == 0;
+  return k;
+}
+inline uint32_t numberNewPoints(Manifold& m, uint32_t next) {
+  for (int i = 0; i < m.count; ++i)
+    if (m.points[i].id == 0) m.points[i].id = next++;
+  return next;
+}
+
 class ManifoldCache {
  public:
   // Last step's manifolds become the ones to match against; this step's list starts empty, or

@@ -60,9 +60,6 @@ class HavokActualStepper final : public Stepper {
     } else if (pool.threads() == 1 || cs.islandCount() == 1) {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly, parts_[0]);
     } else {
-      if (st.warmStart && c.rowsHeld) {  // sized here once, not by each island at once
-        c.startV.resize(nb), c.startW.resize(nb), c.impV.resize(nb), c.impW.resize(nb);
-      }
       // Runs of neighbouring islands a thread, not one: islands next to each other on two
       // threads share the cache lines of their boundary bodies (velocities, sums, sub-steps).
       const size_t islands = static_cast<size_t>(cs.islandCount());

@@ -95,14 +95,18 @@ class SoftStepper final : public Stepper {
     });
     dpV_.assign(nb, Vec3::Zero());
     dpW_.assign(nb, Vec3::Zero());
-    c.subPoses = c.poses;
+    beginSubSteps(c);
     prepareSweeps(c);
     const Pass solve{true, h, st.pushOut}, relax{false, h, st.pushOut};
 
     for (int j = 0; j < n; ++j) {
       addExternal(c, h);
       startImpulses(c, j);
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = softSweep(c, solve);
+      // The step reports the residual of its last solve sweep; the others do not measure it.
+      for (int i = 0; i < m && !cs.rows.empty(); ++i) {
+        if (j + 1 == n && i + 1 == m) c.stats.residual = softSweep<true>(c, solve);
+        else softSweep<false>(c, solve);
+      }
       // Coordinates to the sub-step's end with the solved (biased) velocities.
       pool(c).forRange(nb, 512, [&](size_t first, size_t last, int) {
         for (size_t i = first; i < last; ++i) {
@@ -115,7 +119,7 @@ class SoftStepper final : public Stepper {
       });
       recordSubStep(c, j);
       if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Reformulation::JointRows, 1.0);
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep(c, relax);
+      for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep<false>(c, relax);
       endSubStepImpulses(c);
     }
     c.stats.iterations = 2 * n * m;
@@ -143,34 +147,39 @@ class SoftStepper final : public Stepper {
     double pushOut; // [m/s]
   };
 
-  // Row k's update Δλ = -(a J̌v̌ + b) - s_i λ in this pass: a = s_m m_eff, b = m_eff bias. A
-  // contact's C is C⁰ + J̌·(Σ h v̌ᵏ) at the coordinates reached, J̌ held; joints were
-  // re-formulated from them, so their C is -β h.
+  // Row k's update Δλ = -(a J̌v̌ + b) - s_i λ in this pass: a = s_m m_eff, b = m_eff bias.
   struct Update {
     double a, b, si;
   };
-  Update update(const Row& r, size_t k, const Pass& p) const {
-    double bias = 0, massScale = 1, impulseScale = 0;  // rigid, no feedback: relax
-    switch (kind_[k]) {
-      case Kind::Friction: break;
-      case Kind::Target: bias = -r.bias; break;  // J̌v̌ = target speed
-      case Kind::Contact:
-      case Kind::Limit:
-      case Kind::Joint: {
-        const double C = kind_[k] == Kind::Contact ? c0_[k] + rowVelocity(r, dpV_.data(), dpW_.data()) : -r.bias * p.h;
-        if (kind_[k] != Kind::Joint && C > 0) {
-          bias = C / p.h;  // speculative: close the gap in this sub-step and no further
-        } else if (p.useBias) {
-          const Softness& s = soft_[softOf_[k]];
-          bias = s.massScale * s.biasRate * C;
-          if (kind_[k] == Kind::Contact) bias = std::max(bias, -p.pushOut);
-          massScale = s.massScale;
-          impulseScale = s.impulseScale;
-        }
-        break;
-      }
+  // From a row's position error C: soft with feedback in the solve, rigid without it in the
+  // relax; an inequality apart (C > 0) is speculative in both, closing the gap in this sub-step
+  // and no further; a contact pushes out at most at pushOut.
+  static Update positional(double C, bool inequality, bool contact, const Softness& s, double effMass, const Pass& p) {
+    double bias = 0, massScale = 1, impulseScale = 0;
+    if (inequality && C > 0) {
+      bias = C / p.h;
+    } else if (p.useBias) {
+      bias = s.massScale * s.biasRate * C;
+      if (contact) bias = std::max(bias, -p.pushOut);
+      massScale = s.massScale;
+      impulseScale = s.impulseScale;
     }
-    return {massScale * r.effMass, bias * r.effMass, impulseScale};
+    return {massScale * effMass, bias * effMass, impulseScale};
+  }
+  // A joint's row: re-formulated from the sub-step's coordinates, so its C is -β h.
+  Update jointUpdate(const Row& r, size_t k, const Pass& p) const {
+    switch (kind_[k]) {
+      case Kind::Target: return {r.effMass, -r.bias * r.effMass, 0};  // J̌v̌ = target speed
+      case Kind::Joint:
+      case Kind::Limit: return positional(-r.bias * p.h, kind_[k] == Kind::Limit, false, soft_[softOf_[k]], r.effMass, p);
+      default: return {r.effMass, 0, 0};  // rigid, no bias (friction)
+    }
+  }
+  // A manifold's normal row: C = C⁰ + J̌·(Σ h v̌ᵏ) at the coordinates reached, J̌ held; the
+  // bodies' Σ h v̌ᵏ read once a manifold.
+  Update contactUpdate(const Row& r, size_t k, const Softness& s, const Vec3& dpA, const Vec3& dwA, const Vec3& dpB,
+                       const Vec3& dwB, const Pass& p) const {
+    return positional(c0_[k] + rowVelocity(r, dpA, dwA, dpB, dwB), true, true, s, r.effMass, p);
   }
 
   // What a sweep needs of the step's colours (ConstraintSet::colourOrder).
@@ -212,13 +221,12 @@ class SoftStepper final : public Stepper {
       // bodies' velocities, which cost more than the sweep saved with blocks of 32.
       const size_t grain = std::max<size_t>(1, static_cast<size_t>(islands) * kIslandGrain / std::max<size_t>(1, cs.frictions.size()));
       pool(c).forRange(static_cast<size_t>(islands), grain, [&](size_t b, size_t e, int t) {
-        double change = 0;
-        for (size_t i = b; i < e; ++i) {
-          const IndexRange list = cs.islandManifolds(static_cast<int>(i));
-          for (int q = 0; q < list.count; ++q) f(static_cast<size_t>(list[q]), change);
-        }
-        double& mine = change_[static_cast<size_t>(t) * kPad];
-        mine = std::max(mine, change);
+        onBlock(t, [&](double& change) {
+          for (size_t i = b; i < e; ++i) {
+            const IndexRange list = cs.islandManifolds(static_cast<int>(i));
+            for (int q = 0; q < list.count; ++q) f(static_cast<size_t>(list[q]), change);
+          }
+        });
       });
       return;
     }
@@ -228,19 +236,26 @@ class SoftStepper final : public Stepper {
       const int col = ci == ConstraintSet::kColours ? ci : ConstraintSet::kColours - 1 - ci;
       const int first = start[static_cast<size_t>(col)], last = start[static_cast<size_t>(col) + 1];
       if (first == last) continue;
-      if (col == ConstraintSet::kColours) {  // the overflow: in order, on this thread
-        double change = 0;
-        for (int q = first; q < last; ++q) f(static_cast<size_t>(order[static_cast<size_t>(q)]), change);
-        change_[0] = std::max(change_[0], change);
-        continue;
-      }
-      pool(c).forRange(static_cast<size_t>(last - first), kManifoldGrain, [&](size_t b, size_t e, int t) {
-        double change = 0;  // the block's, kept here: threads writing neighbouring slots would share a cache line
-        for (size_t q = b; q < e; ++q) f(static_cast<size_t>(order[static_cast<size_t>(first) + q]), change);
-        double& mine = change_[static_cast<size_t>(t) * kPad];
-        mine = std::max(mine, change);
-      });
+      const auto inOrder = [&](size_t b, size_t e, int t) {
+        onBlock(t, [&](double& change) {
+          for (size_t q = b; q < e; ++q) f(static_cast<size_t>(order[static_cast<size_t>(first) + q]), change);
+        });
+      };
+      const size_t count = static_cast<size_t>(last - first);
+      if (col == ConstraintSet::kColours) inOrder(0, count, 0);  // the overflow: in order, on this thread
+      else pool(c).forRange(count, kManifoldGrain, inOrder);
     }
+  }
+
+  // body(change) for a block of manifolds on thread t, then the block's largest change into the
+  // thread's slot (kept in the block until then: threads writing neighbouring slots would share a
+  // cache line).
+  template <class B>
+  void onBlock(int t, B body) {
+    double change = 0;
+    body(change);
+    double& mine = change_[static_cast<size_t>(t) * kPad];
+    mine = std::max(mine, change);
   }
 
   // Warm start: sub-step 0 applies last step's λ on this step's J̌ (joints' rows, then each
@@ -251,9 +266,6 @@ class SoftStepper final : public Stepper {
       startSubStepImpulses(c, j);
       return;
     }
-    const size_t nb = c.bodies();
-    c.startV.resize(nb);
-    c.startW.resize(nb);
     std::copy(c.v.begin(), c.v.end(), c.startV.begin());
     std::copy(c.w.begin(), c.w.end(), c.startW.begin());
     applyRowImpulses(cs, IndexRange{nullptr, 0, cs.contactFirstRow}, c.v, c.w);
@@ -276,7 +288,8 @@ class SoftStepper final : public Stepper {
 
   // One sweep: the joints' units row by row (a manifold's friction rows as one unit, their two
   // bodies' velocities read once), then the manifolds colour by colour, each row's update
-  // computed as it is reached.
+  // computed as it is reached. Measure: return the largest velocity change (else 0).
+  template <bool Measure>
   double softSweep(StepContext& c, const Pass& p) {
     ConstraintSet& cs = *c.constraints;
     Row* rows = cs.rows.data();
@@ -288,7 +301,7 @@ class SoftStepper final : public Stepper {
       for (int q = 0; q < u.size; ++q) {
         const size_t k = static_cast<size_t>(u.first + q);
         Row& r = rows[k];
-        const Update d = update(r, k, p);
+        const Update d = jointUpdate(r, k, p);
         change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return -(d.a * jv + d.b) - d.si * r.lambda; }));
       }
     }
@@ -299,11 +312,15 @@ class SoftStepper final : public Stepper {
       eachManifold(c, [&](size_t k, double& ch) {
         const FrictionDef& f = cs.frictions[k];
         Vec3 va = v[f.a], wa = w[f.a], vb = v[f.b], wb = w[f.b];
-        if (phase != Phase::Friction)
+        double change = 0;  // in a register: the caller's running maximum is in memory
+        if (phase != Phase::Friction) {
+          const Vec3 dpA = dpV_[static_cast<size_t>(f.a)], dwA = dpW_[static_cast<size_t>(f.a)];
+          const Vec3 dpB = dpV_[static_cast<size_t>(f.b)], dwB = dpW_[static_cast<size_t>(f.b)];
+          const Softness& s = soft_[softOf_[static_cast<size_t>(f.firstNormal)]];
           for (int q = 0; q < f.normalCount; ++q) {
             const size_t kr = static_cast<size_t>(f.firstNormal + q);
             Row& r = rows[kr];
-            const Update d = update(r, kr, p);
+            const Update d = contactUpdate(r, kr, s, dpA, dwA, dpB, dwB, p);
             const double jv = rowVelocity(r, va, wa, vb, wb);
             const double next = std::clamp(r.lambda + (-(d.a * jv + d.b) - d.si * r.lambda), r.lo, r.hi);
             const double dl = next - r.lambda;
@@ -311,12 +328,15 @@ class SoftStepper final : public Stepper {
             r.pushed = r.pushed || next > 0;
             if (dl == 0) continue;
             applyImpulse(r, dl, va, wa, vb, wb);
-            if (r.effMass > 0) ch = std::max(ch, std::abs(dl) / r.effMass);
+            if (Measure && r.effMass > 0) change = std::max(change, std::abs(dl) / r.effMass);
           }
+        }
         if (phase != Phase::Normals) {  // rigid in both passes: Δλ = -m_eff J̌v̌
           const SolveUnit& u = cs.units[static_cast<size_t>(f.frictionUnit)];
-          solveFrictionUnit(cs.couplings[static_cast<size_t>(u.block)], &rows[f.row], rows, va, wa, vb, wb, 0, 1, ch);
+          solveFrictionUnit<Measure>(cs.couplings[static_cast<size_t>(u.block)], &rows[f.row], rows, va, wa, vb, wb, 0,
+                                     1, change);
         }
+        if (Measure) ch = std::max(ch, change);
         store(c, f, va, wa, vb, wb);
       });
     }

@@ -241,6 +241,11 @@ void beginSubSteps(StepContext& c) {
   c.subPoses = c.poses;
   c.sumV.assign(nb, Vec3::Zero());
   c.sumW.assign(nb, Vec3::Zero());
+  // Sized here, for every body, so that parts of the step (islands on threads) each fill their own.
+  c.startV.resize(nb);
+  c.startW.resize(nb);
+  c.impV.resize(nb);
+  c.impW.resize(nb);
 }
 
 void advanceSubPoses(StepContext& c, int j, RotationRule rule) {
@@ -278,9 +283,6 @@ void startSubStepImpulses(StepContext& c, int j, const ConstraintPart& part) {
     applyRowImpulses(cs, part.rows, c.v, c.w);
     return;
   }
-  const size_t nb = c.bodies();
-  c.startV.resize(nb);  // once: sized for every body, each part writes its own
-  c.startW.resize(nb);
   forEach(part.bodies, [&](size_t i) {
     c.startV[i] = c.v[i];
     c.startW[i] = c.w[i];
@@ -299,9 +301,6 @@ void endSubStepImpulses(StepContext& c) { endSubStepImpulses(c, c.constraints->w
 
 void endSubStepImpulses(StepContext& c, const ConstraintPart& part) {
   if (!c.rowsHeld || !c.settings->warmStart) return;
-  const size_t nb = c.bodies();
-  c.impV.resize(nb);
-  c.impW.resize(nb);
   forEach(part.bodies, [&](size_t i) {
     c.impV[i] = c.v[i] - c.startV[i];
     c.impW[i] = c.w[i] - c.startW[i];

@@ -159,6 +159,7 @@ inline void noteChange(double& change, double dl, double effMass) {
 // Δλ = m_eff (cBias β - cVel J̌v̌) each, bounded by the same Σλn of the manifold's normals. J̌v̌ of
 // all three is read at the unit's start; each row's Δλ then moves the later rows' by the coupling g
 // instead of a velocity update and a twelve-term dot product.
+template <bool Measure = true>  // false: leave change alone
 __attribute__((always_inline)) inline void solveFrictionUnit(const FrictionCoupling& g, Row* r, const Row* rows, Vec3& va,
                                                              Vec3& wa, Vec3& vb, Vec3& wb, double cBias, double cVel,
                                                              double& change) {
@@ -176,7 +177,7 @@ __attribute__((always_inline)) inline void solveFrictionUnit(const FrictionCoupl
   for (int i = 0; i < 3; ++i) {
     if (d[i] == 0) continue;
     applyImpulse(r[i], d[i], va, wa, vb, wb);
-    noteChange(change, d[i], r[i].effMass);
+    if (Measure) noteChange(change, d[i], r[i].effMass);
   }
 }
 
@@ -218,7 +219,8 @@ void recordSubStep(StepContext& c, int j);
 
 // --- sub-stepping (A3-A5) ---------------------------------------------------------------------
 
-// Starts the coordinates of the sub-steps at the step's (before the first sub-step).
+// Starts the coordinates of the sub-steps at the step's (before the first sub-step) and sizes the
+// warm start's per-body buffers (startV, impV, ...).
 void beginSubSteps(StepContext& c);
 // Steps c.subPoses past recorded sub-step j with `rule`: the coordinates at t + (j+1) h/n, by
 // the same formulas s4 uses (so after the last sub-step they are s4's result). Of every body, or
