@@ -37,6 +37,7 @@ WorkerPool& WorkerPool::callerOnly() {
 }
 
 WorkerPool::WorkerPool(int threads) : threads_(usableThreads(threads)) {
+  shares_.reset(new Share[static_cast<size_t>(threads_)]);
   try {
     for (int t = 1; t < threads_; ++t) workers_.emplace_back([this, t] { work(t); });
   } catch (const std::system_error&) {
@@ -56,12 +57,15 @@ WorkerPool::~WorkerPool() {
 }
 
 void WorkerPool::doBlocks(int thread) {
-  for (size_t b; (b = next_.fetch_add(1, std::memory_order_relaxed)) < blocks_;) {
-    try {
-      fn_(ctx_, b, thread);
-    } catch (...) {
-      std::lock_guard<std::mutex> lk(errorM_);
-      if (!error_) error_ = std::current_exception();
+  for (int k = 0; k < threads_; ++k) {
+    Share& share = shares_[static_cast<size_t>((thread + k) % threads_)];
+    for (size_t b; (b = share.next.fetch_add(1, std::memory_order_relaxed)) < share.end;) {
+      try {
+        fn_(ctx_, b, thread);
+      } catch (...) {
+        std::lock_guard<std::mutex> lk(errorM_);
+        if (!error_) error_ = std::current_exception();
+      }
     }
   }
 }
@@ -71,8 +75,11 @@ void WorkerPool::run(size_t blocks, Fn fn, void* ctx) {
   // fields can be written; the release store of the new generation publishes them.
   fn_ = fn;
   ctx_ = ctx;
-  blocks_ = blocks;
-  next_.store(0, std::memory_order_relaxed);
+  const size_t t = static_cast<size_t>(threads_);
+  for (size_t k = 0; k < t; ++k) {
+    shares_[k].next.store(blocks * k / t, std::memory_order_relaxed);
+    shares_[k].end = blocks * (k + 1) / t;
+  }
   left_.store(0, std::memory_order_relaxed);
   const uint64_t gen = generation(state_.load(std::memory_order_relaxed)) + 1;
   state_.store(gen << 32, std::memory_order_seq_cst);

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <memory>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -64,14 +65,24 @@ class WorkerPool {
   // and the workers that joined it (low bits).
   static constexpr uint64_t kClosed = 1ull << 31;
   static constexpr uint64_t kCount = kClosed - 1;
-  std::atomic<uint64_t> state_{0};
-  std::atomic<size_t> next_{0};
-  std::atomic<int> left_{0};
-  std::atomic<int> sleepers_{0};
-  std::atomic<bool> stop_{false};
-  Fn fn_ = nullptr;
+  // The job's hot words on cache lines of their own: every block a thread takes is a fetch_add on
+  // a share's next, which would otherwise evict the line that waiting workers poll state_ (and
+  // read the job) from.
+  alignas(64) std::atomic<uint64_t> state_{0};
+  Fn fn_ = nullptr;  // the job: read by the workers that joined it
   void* ctx_ = nullptr;
-  size_t blocks_ = 0;
+  // The job's blocks in one contiguous share a thread, from the front; a thread done with its own
+  // takes what is left of the others'. The same thread then tends to get the same bodies and
+  // manifolds in every stage and step, and finds them in its own core's cache (docs/benchmarks.md,
+  // "Threads").
+  struct alignas(64) Share {
+    std::atomic<size_t> next{0};
+    size_t end = 0;
+  };
+  std::unique_ptr<Share[]> shares_;  // one a thread
+  alignas(64) std::atomic<int> left_{0};
+  alignas(64) std::atomic<int> sleepers_{0};
+  std::atomic<bool> stop_{false};
   std::mutex m_;
   std::condition_variable cv_;
   std::exception_ptr error_;
