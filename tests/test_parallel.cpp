@@ -1,11 +1,14 @@
 // The step's worker pool (physics/parallel.h): every block handed out once, on every thread
-// count, job after job; an exception in a block reaches the caller.
+// count, job after job; a thread starts on its own share of the blocks; an exception in a block
+// reaches the caller.
 #include "physics/parallel.h"
 
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 using namespace substep;
@@ -34,6 +37,29 @@ TEST(WorkerPool, EveryBlockOnceOnEveryThreadCount) {
       ASSERT_EQ(sum.load(), 1000L * 1001 / 2) << threads << " threads, round " << round;
     }
   }
+}
+
+// Two threads, 100 blocks: the caller's share is blocks 0-49, the worker's 50-99. A thread
+// works through its own share before it takes what is left of the other's, so whenever the
+// worker joins, the first block it gets is one of its own share (with one counter for all it would
+// get the block after the caller's first few, near 0).
+TEST(WorkerPool, EachThreadStartsOnItsOwnShare) {
+  WorkerPool pool(2);
+  if (pool.threads() < 2) GTEST_SKIP() << "the system gave one thread";
+  int workerRounds = 0;
+  for (int round = 0; round < 5; ++round) {
+    std::vector<int> order[2];
+    pool.forBlocks(100, [&](size_t b, int t) {
+      order[t].push_back(static_cast<int>(b));  // each thread appends to its own list only
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    });
+    if (!order[1].empty()) {
+      EXPECT_GE(order[1].front(), 50) << "round " << round;
+    }
+    EXPECT_EQ(order[0].size() + order[1].size(), 100u);
+    workerRounds += !order[1].empty();
+  }
+  EXPECT_GT(workerRounds, 0) << "the worker joined none of five 20 ms jobs: nothing was checked";
 }
 
 TEST(WorkerPool, ABlockThatThrowsIsRethrownToTheCaller) {
