@@ -199,8 +199,6 @@ class SoftStepper final : public Stepper {
   // The step's threads; a context built without them (by hand, in a test) steps on one.
   static WorkerPool& pool(StepContext& c) { return c.pool ? *c.pool : WorkerPool::callerOnly(); }
 
-  static bool moves(const StepContext& c, int body) { return c.mass[static_cast<size_t>(body)].invMass > 0; }
-
   // f(manifold index, change) for every manifold, colour by colour, each colour's on the threads;
   // change: where f keeps the largest velocity change it made, the thread's share of change_.
   template <class F>
@@ -276,14 +274,8 @@ class SoftStepper final : public Stepper {
       Vec3 vb = c.v[static_cast<size_t>(f.b)], wb = c.w[static_cast<size_t>(f.b)];
       for (int r = f.firstNormal; r < f.row + 3; ++r)
         if (rows[r].lambda != 0) applyImpulse(rows[r], rows[r].lambda, va, wa, vb, wb);
-      store(c, f, va, wa, vb, wb);
+      storeMoving(rows[f.row], va, wa, vb, wb, c.v.data(), c.w.data());  // the manifold's bodies and M̌⁻¹
     });
-  }
-
-  // Velocities back to the dynamic bodies only: a static body's are read by every colour at once.
-  static void store(StepContext& c, const FrictionDef& f, const Vec3& va, const Vec3& wa, const Vec3& vb, const Vec3& wb) {
-    if (moves(c, f.a)) c.v[static_cast<size_t>(f.a)] = va, c.w[static_cast<size_t>(f.a)] = wa;
-    if (moves(c, f.b)) c.v[static_cast<size_t>(f.b)] = vb, c.w[static_cast<size_t>(f.b)] = wb;
   }
 
   // One sweep: the joints' units row by row (a manifold's friction rows as one unit, their two
@@ -337,7 +329,7 @@ class SoftStepper final : public Stepper {
                                      1, change);
         }
         if (Measure) ch = std::max(ch, change);
-        store(c, f, va, wa, vb, wb);
+        storeMoving(rows[f.row], va, wa, vb, wb, v, w);
       });
     }
     for (double x : change_) change = std::max(change, x);
