@@ -233,13 +233,19 @@ std::vector<SettingSpec> makeTable() {
        &S::sleep, same(0), {}},
       {"colours", "", "colours", K::Flag, {0, 0}, {}, {A::Soft}, O::Extension, "colours", kNone,
        "soft: solve the contacts colour by colour (Box2D v3's graph colouring: no two manifolds of a colour share a "
-       "moving body), each colour's spread over the threads; off: in the step's order (islands spread over the "
-       "threads). A different "
+       "moving body), each colour's spread over the threads; off: in the step's order (its levels, or with lanes off "
+       "its islands, spread over the threads). A different "
        "order: on the 100-level pyramid a box slides 65 cm in 10 s with it, 22 cm without (docs/algorithms.md)",
        &S::colours, same(0), {}},
+      {"lanes", "", "lanes", K::Flag, {0, 0}, {}, {A::Soft}, O::Limit, "", kNone,
+       "soft: solve the contacts four manifolds at a time in SIMD lanes (AVX2 where the processor has it), in runs "
+       "that share no moving body: the colours, or without them the step's order cut where it can be (its levels); "
+       "the trajectory is the same to the last bit either way (off: one manifold at a time, to compare the speed; "
+       "split contact orders are solved so)",
+       &S::lanes, same(1), {}},
       {"threads", "", "threads", K::Integer, {1, limits::kMaxThreads}, {}, kEvery, O::Limit, "", kNone,
        "Threads a step runs on: the broadphase's queries, the narrowphase, the formulation, the soft step's "
-       "contact colours or islands and A5's islands are shared out; the trajectory is the same to the last bit for "
+       "contact colours, levels or islands and A5's islands are shared out; the trajectory is the same to the last bit for "
        "any number (1 in the bench and the lab; serve and render: the machine's cores for scenes of 3000 moving "
        "bodies or more)",
        &S::threads, same(1), {}},

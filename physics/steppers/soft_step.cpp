@@ -23,9 +23,11 @@
 // to the last bit for any number of threads. Uncoloured on more than one thread, the islands'
 // manifolds go to the threads island by island, each island's in the step's order: the same
 // trajectory again (a pile of separate stacks spreads; a pyramid, one island, does not).
+#include "physics/steppers/soft_lanes.h"
 #include "physics/steppers/stepper.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 
@@ -43,6 +45,8 @@ Softness makeSoft(double hertz, double zeta, double h) {
   const double a1 = 2 * zeta + h * omega, a2 = h * omega * a1, a3 = 1 / (1 + a2);
   return {omega / a1, a2 * a3, a3};
 }
+
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "the lanes read velocities as three doubles a body");
 
 class SoftStepper final : public Stepper {
  public:
@@ -68,10 +72,14 @@ class SoftStepper final : public Stepper {
     soft_[kJointSoft] = joint;
     soft_[kContactSoft] = contact;
     soft_[kStaticSoft] = staticContact;
+    // The coloured manifolds in lanes take their C⁰ and softness from the rows as the lanes are
+    // built: here only the joints' rows (those before the contacts') are classified.
+    lanes_ = st.lanes && st.contactOrder == ContactOrder::Manifold && !cs.frictions.empty();
+    const size_t classified = lanes_ ? static_cast<size_t>(cs.contactFirstRow) : cs.rows.size();
     kind_.resize(cs.rows.size());
     softOf_.resize(cs.rows.size());
     c0_.resize(cs.rows.size());
-    pool(c).forRange(cs.rows.size(), 1024, [&](size_t first, size_t last, int) {
+    pool(c).forRange(classified, 1024, [&](size_t first, size_t last, int) {
       for (size_t k = first; k < last; ++k) {
         const Row& r = cs.rows[k];
         kind_[k] = Kind::Joint;
@@ -82,17 +90,16 @@ class SoftStepper final : public Stepper {
         else if (r.lo == 0 && std::isinf(r.hi)) kind_[k] = Kind::Limit;  // joint limits: C from β
       }
     });
-    pool(c).forRange(cs.contacts.size(), 1024, [&](size_t first, size_t last, int) {
-      for (size_t q = first; q < last; ++q) {
-        const ContactDef& ct = cs.contacts[q];
-        const size_t k = static_cast<size_t>(ct.row);
-        kind_[k] = Kind::Contact;
-        c0_[k] = -cs.rows[k].bias * h;  // β = -C/h as s2 formulated it
-        const bool onStatic = c.model->bodies[static_cast<size_t>(ct.a)].isStatic ||
-                              c.model->bodies[static_cast<size_t>(ct.b)].isStatic;
-        softOf_[k] = onStatic ? kStaticSoft : kContactSoft;
-      }
-    });
+    if (!lanes_)
+      pool(c).forRange(cs.contacts.size(), 1024, [&](size_t first, size_t last, int) {
+        for (size_t q = first; q < last; ++q) {
+          const ContactDef& ct = cs.contacts[q];
+          const size_t k = static_cast<size_t>(ct.row);
+          kind_[k] = Kind::Contact;
+          c0_[k] = contactC0(cs.rows[k], h);
+          softOf_[k] = onStatic(c, ct.a, ct.b) ? kStaticSoft : kContactSoft;
+        }
+      });
     dpV_.assign(nb, Vec3::Zero());
     dpW_.assign(nb, Vec3::Zero());
     beginSubSteps(c);
@@ -120,6 +127,9 @@ class SoftStepper final : public Stepper {
       recordSubStep(c, j);
       if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Reformulation::JointRows, 1.0);
       for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep<false>(c, relax);
+      // Back to the rows, where the next sub-step's warm start (with joints, J̌ re-formulated)
+      // and after the step restitution, the forces and the next step read them.
+      if (lanes_ && (j + 1 == n || !c.rowsHeld || !st.warmStart)) lanesToRows(c);
       endSubStepImpulses(c);
     }
     c.stats.iterations = 2 * n * m;
@@ -194,6 +204,206 @@ class SoftStepper final : public Stepper {
     phases_[0] = order == ContactOrder::Manifold ? Phase::Both : c.settings->warmStart ? Phase::Friction : Phase::Normals;
     phases_[1] = c.settings->warmStart ? Phase::Normals : Phase::Friction;
     change_.assign(static_cast<size_t>(pool(c).threads()) * kPad, 0.0);
+    if (lanes_) buildLanes(c);
+  }
+
+  // The colours in the order they are solved: from the highest down, the overflow last.
+  template <class F>
+  static void eachColour(F f) {
+    for (int ci = 0; ci <= ConstraintSet::kColours; ++ci)
+      f(ci == ConstraintSet::kColours ? ci : ConstraintSet::kColours - 1 - ci);
+  }
+
+  // The sweep's levels: the step's order of the manifolds (the uncoloured sweep's) cut into runs
+  // that can be solved at once without changing a bit of it. A manifold's level is one more than
+  // the highest of the manifolds before it on either of its bodies that move, so it comes after
+  // every manifold whose velocities it reads in the step's order, and before those that read its
+  // own; a level's manifolds share no moving body. Within a level they keep the step's order.
+  // A pyramid's levels run diagonally up its rows (about twice its width of them), a pile of
+  // separate columns has its columns side by side in each.
+  void orderLevels(StepContext& c) {
+    const ConstraintSet& cs = *c.constraints;
+    const size_t count = cs.frictions.size();
+    const Row* rows = cs.rows.data();
+    lastLevel_.assign(c.bodies(), 0);
+    levelOf_.resize(count);
+    int levels = 0;
+    for (size_t k = 0; k < count; ++k) {
+      const FrictionDef& f = cs.frictions[k];
+      const Row& r = rows[f.row];
+      const bool movesA = r.mA != 0, movesB = r.mB != 0;  // storeMoving's test
+      int& la = lastLevel_[static_cast<size_t>(f.a)];
+      int& lb = lastLevel_[static_cast<size_t>(f.b)];
+      const int level = std::max(movesA ? la : 0, movesB ? lb : 0) + 1;
+      if (movesA) la = level;
+      if (movesB) lb = level;
+      levelOf_[k] = level - 1;
+      levels = std::max(levels, level);
+    }
+    levelStart_.assign(static_cast<size_t>(levels) + 1, 0);
+    for (size_t k = 0; k < count; ++k) ++levelStart_[static_cast<size_t>(levelOf_[k]) + 1];
+    for (size_t L = 0; L < static_cast<size_t>(levels); ++L) levelStart_[L + 1] += levelStart_[L];
+    levelOrder_.resize(count);
+    next_.assign(levelStart_.begin(), levelStart_.end() - 1);
+    for (size_t k = 0; k < count; ++k) levelOrder_[static_cast<size_t>(next_[static_cast<size_t>(levelOf_[k])]++)] = static_cast<int>(k);
+  }
+
+  // The manifolds four to a group (soft_lanes.h), in runs whose manifolds share no body that
+  // moves, solved run after run: the colours (from the highest down, the overflow last, one to a
+  // group since its manifolds share bodies), or uncoloured the sweep's levels (orderLevels).
+  void buildLanes(StepContext& c) {
+    const ConstraintSet& cs = *c.constraints;
+    const Row* rows = cs.rows.data();
+    segments_.clear();
+    size_t groups = 0;
+    const auto run = [&](size_t first, size_t count, bool serial) {
+      if (count == 0) return;
+      const size_t n = serial ? count : (count + lanes::kLanes - 1) / lanes::kLanes;
+      segments_.push_back({groups, groups + n, first, count, serial});
+      groups += n;
+    };
+    if (cs.colourStart.empty()) {
+      orderLevels(c);
+      laneOrder_ = levelOrder_.data();
+      for (size_t L = 0; L + 1 < levelStart_.size(); ++L)
+        run(static_cast<size_t>(levelStart_[L]), static_cast<size_t>(levelStart_[L + 1] - levelStart_[L]), false);
+    } else {
+      const std::vector<int>& start = cs.colourStart;
+      laneOrder_ = cs.colourOrder.data();
+      eachColour([&](int col) {
+        const size_t first = static_cast<size_t>(start[static_cast<size_t>(col)]);
+        run(first, static_cast<size_t>(start[static_cast<size_t>(col) + 1]) - first, col == ConstraintSet::kColours);
+      });
+    }
+    const int* order = laneOrder_;
+    c.stats.laneRuns = static_cast<int>(segments_.size());
+    groups_.resize(groups);
+    const double h = c.h() / c.n();
+    const auto fill = [&](const Segment& seg, size_t gi) {
+      lanes::Group& g = groups_[gi];
+      const size_t per = seg.serial ? 1 : lanes::kLanes;
+      const size_t first = (gi - seg.first) * per;
+      g.count = static_cast<int>(std::min(per, seg.count - first));
+      g.normals = 0;
+      for (int l = 0; l < lanes::kLanes; ++l) {
+        // A lane not in use reads lane 0's bodies and, with zero rows and masses, writes nothing.
+        const bool used = l < g.count;
+        const size_t k = static_cast<size_t>(order[seg.order + first + static_cast<size_t>(used ? l : 0)]);
+        const FrictionDef& f = cs.frictions[k];
+        g.manifold[l] = static_cast<int>(k);
+        g.a[l] = f.a;
+        g.b[l] = f.b;
+        const Row& fr = rows[f.row];
+        const BodyMass& A = c.mass[static_cast<size_t>(f.a)];
+        const BodyMass& B = c.mass[static_cast<size_t>(f.b)];
+        // The rows' M̌⁻¹J̌ᵀ are the masses times J̌ (scale 1): checked where asserts run.
+        assert(fr.mA == A.invMass && fr.mB == B.invMass && fr.mAngA == A.invI.cwiseProduct(fr.angA));
+        g.mA.x[l] = used ? fr.mA : 0;
+        g.mB.x[l] = used ? fr.mB : 0;
+        for (int i = 0; i < 3; ++i) {
+          g.invIA[i].x[l] = used ? A.invI[i] : 0;
+          g.invIB[i].x[l] = used ? B.invI[i] : 0;
+        }
+        const Softness& s = soft_[onStatic(c, f.a, f.b) ? kStaticSoft : kContactSoft];
+        g.massScale.x[l] = s.massScale;
+        g.biasRate.x[l] = s.biasRate;
+        g.impulseScale.x[l] = s.impulseScale;
+        const FrictionCoupling& cp = cs.couplings[static_cast<size_t>(cs.units[static_cast<size_t>(f.frictionUnit)].block)];
+        g.g10.x[l] = used ? cp.g10 : 0;
+        g.g20.x[l] = used ? cp.g20 : 0;
+        g.g21.x[l] = used ? cp.g21 : 0;
+        const int normals = used ? f.normalCount : 0;
+        g.normals = std::max(g.normals, normals);
+        for (int q = 0; q < lanes::kMaxNormals; ++q) {
+          const Row* r = q < normals ? &rows[f.firstNormal + q] : nullptr;
+          assert(!r || (r->lo == 0 && std::isinf(r->hi)));
+          laneRow(g.normal[q], l, r);
+          g.normal[q].c0.x[l] = r ? contactC0(*r, h) : 0;
+        }
+        for (int i = 0; i < 3; ++i) {
+          const Row* r = used ? &rows[f.row + i] : nullptr;
+          assert(!r || (r->bias == 0 && r->lo == -r->hi && r->normalRow == f.firstNormal && r->normalCount == f.normalCount));
+          laneRow(g.friction[i], l, r);
+          g.friction[i].mu.x[l] = r ? r->hi : 0;
+        }
+      }
+    };
+    for (const Segment& seg : segments_)
+      pool(c).forRange(seg.last - seg.first, 16, [&](size_t b, size_t e, int) {
+        for (size_t gi = b; gi < e; ++gi) fill(seg, seg.first + gi);
+      });
+  }
+  // Row r into lane l (null: a zero row), with its λ and pushed as the step starts.
+  static void laneRow(lanes::RowLanes& to, int l, const Row* r) {
+    for (int i = 0; i < 3; ++i) {
+      to.lin[i].x[l] = r ? r->lin[i] : 0;
+      to.angA[i].x[l] = r ? r->angA[i] : 0;
+      to.angB[i].x[l] = r ? r->angB[i] : 0;
+    }
+    to.effMass.x[l] = r ? r->effMass : 0;
+    to.lambda.x[l] = r ? r->lambda : 0;
+    to.pushed.x[l] = r && r->pushed ? -1 : 0;
+  }
+
+  // f(group's row lanes, lane, row) for every row of every manifold in the lanes.
+  template <class F>
+  void eachLaneRow(StepContext& c, F f) {
+    Row* rows = c.constraints->rows.data();
+    const std::vector<FrictionDef>& frictions = c.constraints->frictions;
+    pool(c).forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
+      for (size_t gi = b; gi < e; ++gi) {
+        lanes::Group& g = groups_[gi];
+        for (int l = 0; l < g.count; ++l) {
+          const FrictionDef& fd = frictions[static_cast<size_t>(g.manifold[l])];
+          for (int q = 0; q < fd.normalCount; ++q) f(g.normal[q], l, rows[fd.firstNormal + q]);
+          for (int i = 0; i < 3; ++i) f(g.friction[i], l, rows[fd.row + i]);
+        }
+      }
+    });
+  }
+  void lanesFromRows(StepContext& c) {
+    eachLaneRow(c, [](lanes::RowLanes& to, int l, const Row& r) {
+      to.lambda.x[l] = r.lambda;
+      to.pushed.x[l] = r.pushed ? -1 : 0;
+    });
+  }
+  void lanesToRows(StepContext& c) {
+    eachLaneRow(c, [](lanes::RowLanes& from, int l, Row& r) {
+      r.lambda = from.lambda.x[l];
+      r.pushed = from.pushed.x[l] != 0;
+    });
+  }
+
+  // The manifolds' part of a sweep in the lanes.
+  void sweepLanes(StepContext& c, const Pass& p, bool measure) {
+    const lanes::Kernel& k = lanes::kernel();
+    const lanes::Pass lp{p.useBias, p.h, p.pushOut};
+    const double* dpV = dpV_.data()->data();
+    const double* dpW = dpW_.data()->data();
+    eachSegment(c, [&](size_t first, size_t last, int t) {
+      onBlock(t, [&](double& change) {
+        change = std::max(change, k.solve(groups_.data(), first, last, vel(c.v), vel(c.w), dpV, dpW, lp, measure));
+      });
+    });
+  }
+
+  // f(first, last, thread) over the lanes' groups, colour by colour: each colour's on the threads,
+  // the overflow's in order on this one.
+  template <class F>
+  void eachSegment(StepContext& c, F f) {
+    for (const Segment& seg : segments_) {
+      if (seg.serial) f(seg.first, seg.last, 0);
+      else
+        pool(c).forRange(seg.last - seg.first, kManifoldGrain / lanes::kLanes,
+                         [&](size_t b, size_t e, int t) { f(seg.first + b, seg.first + e, t); });
+    }
+  }
+  static double* vel(std::vector<Vec3>& v) { return v.data()->data(); }
+  // A contact's C at the step's start from β = -C/h as s2 formulated it.
+  static double contactC0(const Row& r, double h) { return -r.bias * h; }
+  // Contacts against static bodies are twice as stiff.
+  static bool onStatic(const StepContext& c, int a, int b) {
+    return c.model->bodies[static_cast<size_t>(a)].isStatic || c.model->bodies[static_cast<size_t>(b)].isStatic;
   }
 
   // The step's threads; a context built without them (by hand, in a test) steps on one.
@@ -260,13 +470,22 @@ class SoftStepper final : public Stepper {
   // manifold's, colour by colour); later sub-steps as startSubStepImpulses does.
   void startImpulses(StepContext& c, int j) {
     ConstraintSet& cs = *c.constraints;
-    if (j > 0 || !c.settings->warmStart || !c.rowsHeld) {
+    const bool warm = c.settings->warmStart;
+    if (j > 0 || !warm || !c.rowsHeld) {
       startSubStepImpulses(c, j);
+      // The lanes hold the contacts' λ from here to the sub-step's end (buildLanes took the
+      // step's first): cold, the rows' were zeroed.
+      if (lanes_ && j > 0 && !warm) lanesFromRows(c);
       return;
     }
     std::copy(c.v.begin(), c.v.end(), c.startV.begin());
     std::copy(c.w.begin(), c.w.end(), c.startW.begin());
     applyRowImpulses(cs, IndexRange{nullptr, 0, cs.contactFirstRow}, c.v, c.w);
+    if (lanes_) {
+      const lanes::Kernel& k = lanes::kernel();
+      eachSegment(c, [&](size_t first, size_t last, int) { k.warmStart(groups_.data(), first, last, vel(c.v), vel(c.w)); });
+      return;
+    }
     Row* rows = cs.rows.data();
     eachManifold(c, [&](size_t k, double&) {
       const FrictionDef& f = cs.frictions[k];
@@ -299,6 +518,11 @@ class SoftStepper final : public Stepper {
     }
     std::fill(change_.begin(), change_.end(), 0.0);
     change_[0] = change;  // the joints': uncoloured, one running maximum over the sweep, as before
+    if (lanes_) {
+      sweepLanes(c, p, Measure);
+      for (double x : change_) change = std::max(change, x);
+      return change;
+    }
     for (int ph = 0; ph < phaseCount_; ++ph) {
       const Phase phase = phases_[ph];
       eachManifold(c, [&](size_t k, double& ch) {
@@ -337,6 +561,16 @@ class SoftStepper final : public Stepper {
   }
 
   enum class Phase : unsigned char { Both, Normals, Friction };
+  // A run's groups in groups_ [first, last), of its manifolds at laneOrder_[order ..] (count).
+  struct Segment {
+    size_t first, last, order, count;
+    bool serial;  // the overflow: one manifold a group, in order on one thread
+  };
+  bool lanes_ = false;  // the coloured manifolds solved in lanes (buildLanes)
+  std::vector<lanes::Group> groups_;
+  std::vector<Segment> segments_;
+  const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or levelOrder_
+  std::vector<int> levelOrder_, levelStart_, levelOf_, lastLevel_, next_;  // orderLevels
   static constexpr size_t kManifoldGrain = 32;  // manifolds of a colour a thread takes at a time
   static constexpr size_t kIslandGrain = 512;   // manifolds of whole islands a thread takes at a time
   Phase phases_[2] = {Phase::Both, Phase::Both};  // a sweep's passes over the manifolds (no allocation a step)

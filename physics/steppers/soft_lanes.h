@@ -1,0 +1,91 @@
+// The soft step's coloured contact solve, four manifolds at a time (Box2D v3's wide contact
+// solver, contact_solver.c, in 3D and in doubles). Within a colour no two manifolds share a body
+// that moves, so four of them are solved side by side, each in a lane of the same instructions:
+// the sweep's work a manifold is the same, its instructions a quarter. Each lane does what the
+// soft step's one-manifold solve does (soft_step.cpp, softSweep), operation for operation and in
+// the same order, with no fused multiply-add: every number is the same to the last bit, so the
+// coloured trajectories do not depend on the lanes (tests/test_trajectories.cpp holds them).
+//
+// The data is laid out per group of four manifolds, each field four doubles (one a lane): built
+// from the rows once a step (SoftStepper::buildLanes), solved every sweep, the impulses written
+// back to the rows when the step (or, with joints, each sub-step) ends.
+//
+// No Eigen here: the kernel is compiled twice, for AVX2 and for the baseline x86-64 (SSE2), and
+// the widest the processor runs is taken at run time. Inline functions shared with other files
+// would be compiled for AVX2 in one copy and could be the one the linker keeps.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace substep::lanes {
+
+constexpr int kLanes = 4;
+constexpr int kMaxNormals = 4;  // points a manifold keeps (reducePatch)
+
+struct alignas(32) Quad {
+  double x[kLanes];
+};
+struct alignas(32) Mask {
+  int64_t x[kLanes];  // all ones or zero
+};
+
+// One row in four lanes: J̌ (lin on A's translation, -lin on B's; angA, angB in the bodies'
+// frames), the effective mass [kg or kg m²] and λ. M̌⁻¹J̌ᵀ is not stored: it is the group's
+// inverse masses times J̌, as finishRow makes it (the soft step's scale is 1), the same numbers.
+struct RowLanes {
+  Quad lin[3], angA[3], angB[3];
+  Quad effMass, lambda;
+  Mask pushed;  // λ was positive during this step
+};
+// A contact point's normal row: λ in [0, ∞) (formulateContact).
+struct NormalLanes : RowLanes {
+  Quad c0;  // C at the step's start [m]
+};
+// A friction row: λ in [-μ Σλn, μ Σλn] (formulateFriction: β 0, bounds ±μ).
+struct FrictionLanes : RowLanes {
+  Quad mu;  // [1, or m for the twist row]
+};
+
+struct Group {
+  int count = 0;    // lanes in use (1 to 4); the others are zero rows that change nothing
+  int normals = 0;  // the most normal rows of a lane
+  int manifold[kLanes] = {};           // the manifolds' indices (ConstraintSet::frictions)
+  int a[kLanes] = {}, b[kLanes] = {};  // their bodies
+  Quad mA, mB;                         // inverse masses [1/kg]; zero: the body does not move
+  Quad invIA[3], invIB[3];             // M̌⁻¹, rotational [1/(kg m²)]
+  Quad massScale, biasRate, impulseScale;  // the normals' softness (Softness)
+  Quad g10, g20, g21;                       // the friction rows' couplings (FrictionCoupling)
+  NormalLanes normal[kMaxNormals];
+  FrictionLanes friction[3];  // t1, t2, twist
+};
+
+// A sweep's pass: the solve (soft, with position feedback) or the relax (rigid, none).
+struct Pass {
+  bool useBias;
+  double h;        // the sub-step [s]
+  double pushOut;  // [m/s]
+};
+
+// Velocities v, w: three doubles a body (world linear, body-frame angular); dpV, dpW: Σ h v̌ᵏ of
+// the sub-steps so far, the same way.
+struct Kernel {
+  // Solves groups [first, last) in order. Returns the largest velocity change of a row when
+  // measure is set (else 0).
+  double (*solve)(Group* groups, size_t first, size_t last, double* v, double* w, const double* dpV, const double* dpW,
+                  const Pass& pass, bool measure);
+  // The warm start: each row's λ applied (v̌ += M̌⁻¹J̌ᵀλ), groups [first, last) in order.
+  void (*warmStart)(const Group* groups, size_t first, size_t last, double* v, double* w);
+  const char* name;  // "avx2" or "sse2"
+};
+
+// The kernel the soft step uses: the widest this processor runs, unless useKernel chose another.
+const Kernel& kernel();
+// For the tests and the bench: solve with k from now on (null: the widest again).
+void useKernel(const Kernel* k);
+// Each, for the test that they agree.
+const Kernel& sse2Kernel();
+const Kernel& avx2Kernel();
+bool avx2Supported();
+
+}  // namespace substep::lanes

@@ -1,0 +1,9 @@
+// The lanes' kernel for AVX2 (this file alone is compiled with -mavx2, not -mfma: no fused
+// multiply-add, so its numbers are the baseline kernel's and the one-manifold solve's).
+#include "physics/steppers/soft_lanes.h"
+
+#include <algorithm>
+
+#define SUBSTEP_LANES_KERNEL avx2Kernel
+#define SUBSTEP_LANES_NAME "avx2"
+#include "physics/steppers/soft_lanes_kernel.inc"

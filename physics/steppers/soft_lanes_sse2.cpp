@@ -1,0 +1,34 @@
+// The lanes' kernel for the baseline x86-64 (two lanes an instruction), and the choice between it
+// and the AVX2 one (four) at run time.
+#include "physics/steppers/soft_lanes.h"
+
+#include <algorithm>
+#include <atomic>
+
+#define SUBSTEP_LANES_KERNEL sse2Kernel
+#define SUBSTEP_LANES_NAME "sse2"
+#include "physics/steppers/soft_lanes_kernel.inc"
+
+namespace substep::lanes {
+
+bool avx2Supported() {
+#if defined(__x86_64__) || defined(__i386__)
+  return __builtin_cpu_supports("avx2");
+#else
+  return false;
+#endif
+}
+
+namespace {
+std::atomic<const Kernel*> chosen{nullptr};
+}
+
+const Kernel& kernel() {
+  static const Kernel& widest = avx2Supported() ? avx2Kernel() : sse2Kernel();
+  const Kernel* k = chosen.load(std::memory_order_relaxed);
+  return k ? *k : widest;
+}
+
+void useKernel(const Kernel* k) { chosen.store(k, std::memory_order_relaxed); }
+
+}  // namespace substep::lanes

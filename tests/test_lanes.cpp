@@ -1,0 +1,92 @@
+// The soft step's lanes (physics/steppers/soft_lanes.h): four manifolds solved at once give the
+// numbers of one at a time, to the last bit, in the step's order (its levels) and by colours, warm
+// and cold, with joints re-formulated between sub-steps; and the AVX2 and the baseline kernels
+// give the same numbers.
+#include "physics/scene_file.h"
+#include "physics/state_hash.h"
+#include "physics/steppers/soft_lanes.h"
+#include "physics/world.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+using namespace substep;
+
+namespace {
+
+struct Stepped {
+  std::vector<std::string> hashes;  // the state's after every step
+  int laneRuns = 0;                 // the most runs a step solved in lanes
+};
+
+Stepped trajectory(const Scene& s, SolverSettings st, int steps) {
+  Stepped out;
+  World w(s.model, st, s.initial);
+  for (int k = 0; k < steps; ++k) {
+    const StepReport& r = w.step();
+    out.hashes.push_back(hashText(stateHash(w.state())));
+    out.laneRuns = std::max(out.laneRuns, r.solver.laneRuns);
+    if (!r.finite) break;
+  }
+  return out;
+}
+
+SolverSettings soft(const Scene& s, bool lanes, bool colours, bool warm) {
+  SolverOverrides o = s.solver;
+  o.set(&SolverSettings::algorithm, Algorithm::Soft);
+  o.set(&SolverSettings::lanes, lanes);
+  o.set(&SolverSettings::colours, colours);
+  o.set(&SolverSettings::warmStart, warm);
+  return resolve(o);
+}
+
+Scene scene(const char* name) { return loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + name); }
+
+}  // namespace
+
+TEST(Lanes, SameTrajectoryAsOneManifoldAtATime) {
+  struct Case {
+    const char* scene;
+    int steps;
+  };
+  // The pyramid: one island, levels diagonal across it; the ragdoll pile: joints' rows before the
+  // contacts and re-formulated every sub-step (the lanes' λ go back to the rows each sub-step).
+  for (const Case& c : {Case{"pyramid.json", 30}, Case{"ragdoll_pile.json", 30}}) {
+    const Scene s = scene(c.scene);
+    for (bool colours : {false, true})
+      for (bool warm : {true, false}) {
+        const std::string what = std::string(c.scene) + (colours ? " colours" : " levels") + (warm ? " warm" : " cold");
+        const Stepped one = trajectory(s, soft(s, false, colours, warm), c.steps);
+        const Stepped four = trajectory(s, soft(s, true, colours, warm), c.steps);
+        EXPECT_EQ(one.laneRuns, 0) << what;
+        EXPECT_GT(four.laneRuns, 0) << what << ": the lanes were not used";
+        ASSERT_EQ(one.hashes.size(), four.hashes.size()) << what;
+        for (size_t k = 0; k < one.hashes.size(); ++k) ASSERT_EQ(one.hashes[k], four.hashes[k]) << what << ", step " << k + 1;
+      }
+  }
+}
+
+// Levels: the pyramid's are about twice its width (its rows' manifolds in a diagonal wavefront),
+// not one a manifold (a chain) nor one for all (which would solve neighbours at once).
+TEST(Lanes, APyramidsLevelsAreAboutTwiceItsWidth) {
+  const Scene s = scene("pyramid.json");  // 20 levels, 210 boxes, about 400 manifolds
+  const Stepped r = trajectory(s, soft(s, true, false, true), 5);
+  EXPECT_GE(r.laneRuns, 30);
+  EXPECT_LE(r.laneRuns, 80);
+}
+
+TEST(Lanes, TheAvx2AndBaselineKernelsAgree) {
+  if (!lanes::avx2Supported()) GTEST_SKIP() << "this processor has no AVX2";
+  const Scene s = scene("pyramid.json");
+  const SolverSettings st = soft(s, true, false, true);
+  lanes::useKernel(&lanes::sse2Kernel());
+  const Stepped baseline = trajectory(s, st, 30);
+  lanes::useKernel(&lanes::avx2Kernel());
+  const Stepped avx2 = trajectory(s, st, 30);
+  lanes::useKernel(nullptr);
+  EXPECT_STREQ(lanes::kernel().name, "avx2");
+  ASSERT_GT(avx2.laneRuns, 0);
+  EXPECT_EQ(baseline.hashes, avx2.hashes);
+}
