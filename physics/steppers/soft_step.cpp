@@ -224,14 +224,13 @@ class SoftStepper final : public Stepper {
   void orderLevels(StepContext& c) {
     const ConstraintSet& cs = *c.constraints;
     const size_t count = cs.frictions.size();
-    const Row* rows = cs.rows.data();
     lastLevel_.assign(c.bodies(), 0);
     levelOf_.resize(count);
     int levels = 0;
     for (size_t k = 0; k < count; ++k) {
       const FrictionDef& f = cs.frictions[k];
-      const Row& r = rows[f.row];
-      const bool movesA = r.mA != 0, movesB = r.mB != 0;  // storeMoving's test
+      // storeMoving's test: the rows' M̌⁻¹ is the body's (scale 1), zero for static and sleeping ones.
+      const bool movesA = c.mass[static_cast<size_t>(f.a)].invMass != 0, movesB = c.mass[static_cast<size_t>(f.b)].invMass != 0;
       int& la = lastLevel_[static_cast<size_t>(f.a)];
       int& lb = lastLevel_[static_cast<size_t>(f.b)];
       const int level = std::max(movesA ? la : 0, movesB ? lb : 0) + 1;
