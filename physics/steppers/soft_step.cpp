@@ -20,9 +20,11 @@
 // SolverSettings::colours, colour by colour as Box2D v3's solver.c does: no two manifolds of a
 // colour share a moving body, and each colour's (in the step's order) are solved on the step's
 // threads. Within a colour no manifold reads what another writes, so the trajectory is the same
-// to the last bit for any number of threads. Uncoloured on more than one thread, the islands'
-// manifolds go to the threads island by island, each island's in the step's order: the same
-// trajectory again (a pile of separate stacks spreads; a pyramid, one island, does not).
+// to the last bit for any number of threads. The manifolds are solved four at a time in SIMD lanes
+// (soft_lanes.h, SolverSettings::lanes) in runs that share no moving body: the colours, or
+// uncoloured the levels of the step's order (orderLevels), which give its numbers to the last bit;
+// a run's groups go to the threads. Without the lanes (or in a split contact order) one manifold
+// at a time, uncoloured the islands to the threads island by island: the same trajectory again.
 #include "physics/steppers/soft_lanes.h"
 #include "physics/steppers/stepper.h"
 
@@ -72,8 +74,8 @@ class SoftStepper final : public Stepper {
     soft_[kJointSoft] = joint;
     soft_[kContactSoft] = contact;
     soft_[kStaticSoft] = staticContact;
-    // The coloured manifolds in lanes take their C⁰ and softness from the rows as the lanes are
-    // built: here only the joints' rows (those before the contacts') are classified.
+    // The manifolds in lanes take their C⁰ and softness from the rows as the lanes are built:
+    // then only the joints' rows (those before the contacts') are classified here.
     lanes_ = st.lanes && st.contactOrder == ContactOrder::Manifold && !cs.frictions.empty();
     const size_t classified = lanes_ ? static_cast<size_t>(cs.contactFirstRow) : cs.rows.size();
     kind_.resize(cs.rows.size());
@@ -386,8 +388,8 @@ class SoftStepper final : public Stepper {
     });
   }
 
-  // f(first, last, thread) over the lanes' groups, colour by colour: each colour's on the threads,
-  // the overflow's in order on this one.
+  // f(first, last, thread) over the lanes' groups, run by run: each run's on the threads, the
+  // colours' overflow in order on this one.
   template <class F>
   void eachSegment(StepContext& c, F f) {
     for (const Segment& seg : segments_) {
@@ -565,7 +567,7 @@ class SoftStepper final : public Stepper {
     size_t first, last, order, count;
     bool serial;  // the overflow: one manifold a group, in order on one thread
   };
-  bool lanes_ = false;  // the coloured manifolds solved in lanes (buildLanes)
+  bool lanes_ = false;  // this step's manifolds solved in lanes (buildLanes)
   std::vector<lanes::Group> groups_;
   std::vector<Segment> segments_;
   const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or levelOrder_
