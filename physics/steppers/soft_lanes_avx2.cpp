@@ -2,8 +2,6 @@
 // multiply-add, so its numbers are the baseline kernel's and the one-manifold solve's).
 #include "physics/steppers/soft_lanes.h"
 
-#include <algorithm>
-
 #define SUBSTEP_LANES_KERNEL avx2Kernel
 #define SUBSTEP_LANES_NAME "avx2"
 #include "physics/steppers/soft_lanes_kernel.inc"

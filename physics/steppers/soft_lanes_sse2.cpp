@@ -2,7 +2,6 @@
 // and the AVX2 one (four) at run time.
 #include "physics/steppers/soft_lanes.h"
 
-#include <algorithm>
 #include <atomic>
 
 #define SUBSTEP_LANES_KERNEL sse2Kernel
