@@ -1,14 +1,15 @@
-// The soft step's coloured contact solve, four manifolds at a time (Box2D v3's wide contact
-// solver, contact_solver.c, in 3D and in doubles). Within a colour no two manifolds share a body
-// that moves, so four of them are solved side by side, each in a lane of the same instructions:
-// the sweep's work a manifold is the same, its instructions a quarter. Each lane does what the
-// soft step's one-manifold solve does (soft_step.cpp, softSweep), operation for operation and in
-// the same order, with no fused multiply-add: every number is the same to the last bit, so the
-// coloured trajectories do not depend on the lanes (tests/test_trajectories.cpp holds them).
+// The soft step's contact solve, four manifolds at a time (Box2D v3's wide contact solver,
+// contact_solver.c, in 3D and in doubles). Four manifolds that share no body that moves (of one
+// colour, or of one level of the step's order: SoftStepper::orderLevels) are solved side by side,
+// each in a lane of the same instructions: the sweep's work a manifold is the same, its
+// instructions a quarter. Each lane does what the soft step's one-manifold solve does
+// (soft_step.cpp, softSweep), operation for operation and in the same order, with no fused
+// multiply-add: every number is the same to the last bit, lanes or not (tests/test_lanes.cpp;
+// the trajectory table holds every soft run).
 //
 // The data is laid out per group of four manifolds, each field four doubles (one a lane): built
-// from the rows once a step (SoftStepper::buildLanes), solved every sweep, the impulses written
-// back to the rows when the step (or, with joints, each sub-step) ends.
+// from the rows once a step with their λ (SoftStepper::buildLanes), solved every sweep, the
+// impulses written back to the rows when the step ends (with joints or cold, each sub-step).
 //
 // No Eigen here: the kernel is compiled twice, for AVX2 and for the baseline x86-64 (SSE2), and
 // the widest the processor runs is taken at run time. Inline functions shared with other files
