@@ -329,10 +329,16 @@ class SoftStepper final : public Stepper {
         }
       }
     };
-    for (const Segment& seg : segments_)
-      pool(c).forRange(seg.last - seg.first, 16, [&](size_t b, size_t e, int) {
-        for (size_t gi = b; gi < e; ++gi) fill(seg, seg.first + gi);
-      });
+    // Every run's groups in one job: a level is a few groups, too few to share out on its own
+    // (one job a level left the 100-level pyramid's lanes to the calling thread alone).
+    pool(c).forRange(groups, 16, [&](size_t b, size_t e, int) {
+      auto seg = std::upper_bound(segments_.begin(), segments_.end(), b,
+                                  [](size_t gi, const Segment& s) { return gi < s.last; });
+      for (size_t gi = b; gi < e; ++gi) {
+        while (seg->last <= gi) ++seg;
+        fill(*seg, gi);
+      }
+    });
   }
   // Row r into lane l (null: a zero row), with its λ and pushed as the step starts.
   static void laneRow(lanes::RowLanes& to, int l, const Row* r) {
