@@ -774,7 +774,9 @@ std::string settingsLine(const SolverSettings& s, LineDetail detail) {
   const char* sep = " ";
   if (detail == LineDetail::Complete) o += std::string(" (") + algorithmTitle(a) + ")";
   if (detail == LineDetail::Hud) {
-    o += std::string(" ") + algorithmTitle(a);
+    // The name, then what it is; a title that starts with the name ("soft step ...") stands for both.
+    const std::string title = algorithmTitle(a);
+    o = title.rfind(o + " ", 0) == 0 ? title : o + " " + title;
     sep = "  ";
   }
   for (const std::string& i : items) o += sep + i;

@@ -151,6 +151,19 @@ TEST(Schema, EveryOutputNamesEveryKey) {
   }
 }
 
+// The HUD names the algorithm and what it is, once: "a5 Havok stepping, actual", and the soft
+// step by its title alone, which starts with its name.
+TEST(Schema, TheHudNamesTheAlgorithmOnce) {
+  for (Algorithm a : kAlgorithms) {
+    SolverOverrides o;
+    o.set(&SolverSettings::algorithm, a);
+    const std::string hud = settingsLine(resolve(o), LineDetail::Hud), name = algorithmName(a);
+    EXPECT_EQ(hud.find(name), 0u) << hud;
+    EXPECT_NE(hud.find(algorithmTitle(a)), std::string::npos) << hud;
+    EXPECT_EQ(hud.find(name + " " + name), std::string::npos) << hud;
+  }
+}
+
 // Each algorithm's defaults are the schema's, and a value given for a setting the algorithm
 // does not read is refused when given explicitly, left out when a scene gives it.
 TEST(Schema, DefaultsAndWhichAlgorithmsReadASetting) {
