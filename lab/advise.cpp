@@ -148,24 +148,16 @@ FoundReference findConvergedReference(const Scene& scene, double seconds, double
 
 namespace {
 
-// The ladder a candidate stands on: its spec without h, n and m (and a peer's it), the settings
-// along which error falls as work rises ("a5:kappa=1:tau=0.6:warm=off").
+// The ladder a candidate stands on: the method without h, n and m (a peer's it), the settings
+// along which error falls as work rises, as parseMethods read them, so that specs written in
+// another order or spelling ("a5:tau=0:kappa=1", "a5:kappa=1.0:tau=0") stand on the same one.
 std::string ladderOf(const Method& m) {
-  std::string key;
-  size_t from = 0;
-  for (size_t to = 0; to <= m.text.size(); ++to) {
-    if (to < m.text.size() && m.text[to] != ':') continue;
-    const std::string part = m.text.substr(from, to - from);
-    from = to + 1;
-    const size_t eq = part.find('=');
-    if (eq != std::string::npos) {
-      const std::string name = part.substr(0, eq);
-      const SettingSpec* s = findSetting(m.isPeer() && name == "it" ? "iterations" : name);
-      const std::string k = s ? s->key : "";
-      if (k == "dt" || k == "substeps" || k == "iterations") continue;
-    }
-    key += (key.empty() ? "" : ":") + part;
-  }
+  SolverOverrides rest = m.overrides;
+  rest.clear(&SolverSettings::dt);
+  rest.clear(&SolverSettings::substeps);
+  rest.clear(&SolverSettings::iterations);
+  std::string key = m.peer + "|" + rest.specText();
+  for (const auto& [name, value] : m.peerOptions) key += ":" + name + "=" + numberText(value);
   return key;
 }
 

@@ -790,6 +790,30 @@ TEST(Advice, LaddersAreClimbedAndEveryCandidateIsGiven) {
   EXPECT_EQ(SearchOrder(candidates, work).left(cheap).size(), 21u * 2);
 }
 
+// A ladder is the method as read, not as written: candidates whose specs give the same settings in
+// another order or spelling are searched exactly as if all were written alike.
+TEST(Advice, ALadderIsTheMethodNotItsSpelling) {
+  const auto order = [](bool mixed) {
+    std::vector<Method> candidates;
+    std::vector<double> work;
+    for (int l = 0; l < 3; ++l)
+      for (int rung = 0; rung < 16; ++rung) {
+        const std::string n = "n=" + std::to_string(1 + rung), kappa = std::to_string(0.25 * (1 + l));
+        const bool other = mixed && rung % 2;
+        candidates.push_back(parseMethods(other ? "a5:tau=0.0:kappa=" + kappa + ":" + n : "a5:" + n + ":kappa=" + kappa + ":tau=0")[0]);
+        work.push_back(1 + rung + 0.01 * l);
+      }
+    SearchOrder search(candidates, work);
+    std::vector<size_t> given;
+    while (const std::optional<size_t> c = search.next([](double) { return false; })) {
+      given.push_back(*c);
+      search.report(*c, *c % 16 >= 12);  // each ladder meets from its 12th rung
+    }
+    return given;
+  };
+  EXPECT_EQ(order(true), order(false));
+}
+
 // The Bullet peer's state is ours: the same poses and velocities, angular velocity in the body
 // frame.
 TEST(BulletPeer, StateRoundTripAndPenetration) {
