@@ -1,5 +1,6 @@
 // `substep render`: outputs (PNG, PNG sequence, MP4), comparisons, progress, bad input (exit 2),
 // divergence (exit 3), a failing ffmpeg (exit 1), and nothing partial left behind. Runs the binary.
+#include "app/common.h"
 #include "render/image.h"
 #include "run_substep.h"
 
@@ -14,6 +15,7 @@
 #include <fstream>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -258,4 +260,29 @@ TEST(RenderCli, FailingFfmpegLeavesNothingBehind) {
   EXPECT_NE(r.output.find("ffmpeg"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("status 1"), std::string::npos) << r.output;
   EXPECT_TRUE(listing(d).empty()) << listing(d).front();
+}
+
+// serve and render step on every core from kEveryCoreFromBodies moving bodies (below, handing the
+// work out costs more than it saves: docs/benchmarks.md, "Threads"); static bodies do not count,
+// and a scene's or the command line's threads win.
+TEST(EveryCore, FromThreeThousandMovingBodiesUnlessTheSceneOrCommandLineSays) {
+  using namespace substep;
+  using app::kEveryCoreFromBodies;
+  using app::onEveryCore;
+  const SettingSpec& threads = settingOf(&SolverSettings::threads);
+  const auto scene = [](long moving) {
+    Scene s;
+    s.model.bodies.resize(static_cast<size_t>(moving) + 1);
+    s.model.bodies[0].isStatic = true;
+    return s;
+  };
+  const double cores = std::min<double>(std::max(1u, std::thread::hardware_concurrency()), limits::kMaxThreads);
+  EXPECT_FALSE(onEveryCore(scene(kEveryCoreFromBodies - 1), {}).has(threads));
+  EXPECT_EQ(onEveryCore(scene(kEveryCoreFromBodies), {}).value(threads), cores);
+  SolverOverrides given;
+  given.set(&SolverSettings::threads, 1);
+  EXPECT_EQ(onEveryCore(scene(kEveryCoreFromBodies), given).value(threads), 1.0);
+  Scene fromFile = scene(kEveryCoreFromBodies);
+  fromFile.solver.set(&SolverSettings::threads, 1);
+  EXPECT_FALSE(onEveryCore(fromFile, {}).has(threads));  // the scene's own setting stands
 }
