@@ -329,8 +329,8 @@ class SoftStepper final : public Stepper {
         }
       }
     };
-    // Every run's groups in one job: a level is a few groups, too few to share out on its own
-    // (one job a level left the 100-level pyramid's lanes to the calling thread alone).
+    // Every run's groups in one job: a level is a few groups (nine on the 100-level pyramid),
+    // less than one block, so a job a run would leave them all to the calling thread.
     pool(c).forRange(groups, 16, [&](size_t b, size_t e, int) {
       auto seg = std::upper_bound(segments_.begin(), segments_.end(), b,
                                   [](size_t gi, const Segment& s) { return gi < s.last; });
