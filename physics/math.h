@@ -41,13 +41,17 @@ struct Frame {
 inline Quat Rq(const Vec3& a) {
   const double theta = a.norm();
   const double half = 0.5 * theta;
-  double s;  // sin(theta/2)/theta
+  double s, c;  // sin(theta/2)/theta, cos(theta/2)
   if (theta < 1e-6) {
     s = 0.5 - theta * theta / 48.0;
+    c = std::cos(half);
   } else {
-    s = std::sin(half) / theta;
+    // One call for both (glibc's sincos gives sin's and cos's bits: the trajectory table holds).
+    double sinHalf;
+    ::sincos(half, &sinHalf, &c);
+    s = sinHalf / theta;
   }
-  return Quat(std::cos(half), s * a.x(), s * a.y(), s * a.z());
+  return Quat(c, s * a.x(), s * a.y(), s * a.z());
 }
 
 // The inverse of Rq: rotation vector of a unit quaternion (angle in [0, pi]).
