@@ -238,7 +238,8 @@ std::vector<SettingSpec> makeTable() {
        "order: on the 100-level pyramid a box slides 65 cm in 10 s with it, 22 cm without (docs/algorithms.md)",
        &S::colours, same(0), {}},
       {"lanes", "", "lanes", K::Flag, {0, 0}, {}, {A::Soft}, O::Limit, "", kNone,
-       "soft: solve the contacts four manifolds at a time in SIMD lanes (AVX2 where the processor has it), in runs "
+       "soft: solve the contacts eight manifolds at a time in SIMD lanes (AVX-512, or four an instruction with AVX2 or "
+       "without), in runs "
        "that share no moving body: the colours, or without them the step's order cut where it can be (its levels); "
        "the trajectory is the same to the last bit either way (off: one manifold at a time, to compare the speed; "
        "split contact orders are solved so)",

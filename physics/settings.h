@@ -117,7 +117,7 @@ struct SolverSettings {
   bool sleep;                      // islands at rest for half a second stop stepping until woken
   int threads;                    // threads a step runs on (results do not depend on it)
   bool colours;                   // soft: contacts solved colour by colour, the colours over the threads
-  bool lanes;                     // soft: contacts solved four at a time in SIMD lanes (same numbers)
+  bool lanes;                     // soft: contacts solved eight at a time in SIMD lanes (same numbers)
   int directMaxRows;              // A1: largest MLCP it forms densely [rows]
   double directWorkBudget;        // A1: floating-point operations per step (mlcp_direct.h)
 };

@@ -1,7 +1,7 @@
-// The soft step's lanes (physics/steppers/soft_lanes.h): four manifolds solved at once give the
+// The soft step's lanes (physics/steppers/soft_lanes.h): eight manifolds solved at once give the
 // numbers of one at a time, to the last bit, in the step's order (its levels) and by colours, warm
-// and cold, with joints re-formulated between sub-steps; and the AVX2 and the baseline kernels
-// give the same numbers.
+// and cold, with joints re-formulated between sub-steps; and the AVX-512, AVX2 and baseline
+// kernels give the same numbers.
 #include "physics/scene_file.h"
 #include "physics/state_hash.h"
 #include "physics/steppers/soft_lanes.h"
@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace substep;
@@ -59,11 +60,11 @@ TEST(Lanes, SameTrajectoryAsOneManifoldAtATime) {
       for (bool warm : {true, false}) {
         const std::string what = std::string(c.scene) + (colours ? " colours" : " levels") + (warm ? " warm" : " cold");
         const Stepped one = trajectory(s, soft(s, false, colours, warm), c.steps);
-        const Stepped four = trajectory(s, soft(s, true, colours, warm), c.steps);
+        const Stepped eight = trajectory(s, soft(s, true, colours, warm), c.steps);
         EXPECT_EQ(one.laneRuns, 0) << what;
-        EXPECT_GT(four.laneRuns, 0) << what << ": the lanes were not used";
-        ASSERT_EQ(one.hashes.size(), four.hashes.size()) << what;
-        for (size_t k = 0; k < one.hashes.size(); ++k) ASSERT_EQ(one.hashes[k], four.hashes[k]) << what << ", step " << k + 1;
+        EXPECT_GT(eight.laneRuns, 0) << what << ": the lanes were not used";
+        ASSERT_EQ(one.hashes.size(), eight.hashes.size()) << what;
+        for (size_t k = 0; k < one.hashes.size(); ++k) ASSERT_EQ(one.hashes[k], eight.hashes[k]) << what << ", step " << k + 1;
       }
   }
 }
@@ -77,16 +78,23 @@ TEST(Lanes, APyramidsLevelsAreAboutTwiceItsWidth) {
   EXPECT_LE(r.laneRuns, 80);
 }
 
-TEST(Lanes, TheAvx2AndBaselineKernelsAgree) {
-  if (!lanes::avx2Supported()) GTEST_SKIP() << "this processor has no AVX2";
+// The three kernels (eight lanes an instruction, four, and four in pairs of two) give the same
+// numbers, and the widest this processor runs is the one taken.
+TEST(Lanes, TheKernelsAgree) {
   const Scene s = scene("pyramid.json");
   const SolverSettings st = soft(s, true, false, true);
   lanes::useKernel(&lanes::sse2Kernel());
   const Stepped baseline = trajectory(s, st, 30);
-  lanes::useKernel(&lanes::avx2Kernel());
-  const Stepped avx2 = trajectory(s, st, 30);
+  ASSERT_GT(baseline.laneRuns, 0);
+  int compared = 0;
+  for (const auto& [supported, k] : {std::pair{lanes::avx2Supported(), &lanes::avx2Kernel()},
+                                     std::pair{lanes::avx512Supported(), &lanes::avx512Kernel()}}) {
+    if (!supported) continue;
+    lanes::useKernel(k);
+    EXPECT_EQ(baseline.hashes, trajectory(s, st, 30).hashes) << k->name;
+    ++compared;
+  }
   lanes::useKernel(nullptr);
-  EXPECT_STREQ(lanes::kernel().name, "avx2");
-  ASSERT_GT(avx2.laneRuns, 0);
-  EXPECT_EQ(baseline.hashes, avx2.hashes);
+  EXPECT_STREQ(lanes::kernel().name, lanes::avx512Supported() ? "avx512" : lanes::avx2Supported() ? "avx2" : "sse2");
+  if (compared == 0) GTEST_SKIP() << "this processor has neither AVX2 nor AVX-512: only the baseline kernel ran";
 }

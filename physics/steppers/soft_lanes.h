@@ -1,19 +1,20 @@
-// The soft step's contact solve, four manifolds at a time (Box2D v3's wide contact solver,
-// contact_solver.c, in 3D and in doubles). Four manifolds that share no body that moves (of one
+// The soft step's contact solve, eight manifolds at a time (Box2D v3's wide contact solver,
+// contact_solver.c, in 3D and in doubles). Eight manifolds that share no body that moves (of one
 // colour, or of one level of the step's order: SoftStepper::orderLevels) are solved side by side,
 // each in a lane of the same instructions: the sweep's work a manifold is the same, its
-// instructions a quarter. Each lane does what the soft step's one-manifold solve does
+// instructions an eighth with AVX-512 (a quarter with AVX2 and the baseline, which solve a group
+// as two parts of four). Each lane does what the soft step's one-manifold solve does
 // (soft_step.cpp, softSweep), operation for operation and in the same order, with no fused
 // multiply-add: every number is the same to the last bit, lanes or not (tests/test_lanes.cpp;
 // the trajectory table holds every soft run).
 //
-// The data is laid out per group of four manifolds, each field four doubles (one a lane): built
+// The data is laid out per group of eight manifolds, each field eight doubles (one a lane): built
 // from the rows once a step with their λ (SoftStepper::buildLanes), solved every sweep, the
 // impulses written back to the rows when the step ends (with joints or cold, each sub-step).
 //
-// No Eigen here: the kernel is compiled twice, for AVX2 and for the baseline x86-64 (SSE2), and
-// the widest the processor runs is taken at run time. Inline functions shared with other files
-// would be compiled for AVX2 in one copy and could be the one the linker keeps.
+// No Eigen here: the kernel is compiled three times, for AVX-512, for AVX2 and for the baseline
+// x86-64 (SSE2), and the widest the processor runs is taken at run time. Inline functions shared
+// with other files would be compiled for AVX-512 in one copy and could be the one the linker keeps.
 #pragma once
 
 #include <cstddef>
@@ -21,42 +22,42 @@
 
 namespace substep::lanes {
 
-constexpr int kLanes = 4;
+constexpr int kLanes = 8;
 constexpr int kMaxNormals = 4;  // points a manifold keeps (reducePatch)
 
-struct alignas(32) Quad {
+struct alignas(64) Doubles {
   double x[kLanes];
 };
-struct alignas(32) Mask {
+struct alignas(64) Mask {
   int64_t x[kLanes];  // all ones or zero
 };
 
-// One row in four lanes: J̌ (lin on A's translation, -lin on B's; angA, angB in the bodies'
+// One row in eight lanes: J̌ (lin on A's translation, -lin on B's; angA, angB in the bodies'
 // frames), the effective mass [kg or kg m²] and λ. M̌⁻¹J̌ᵀ is not stored: it is the group's
 // inverse masses times J̌, as finishRow makes it (the soft step's scale is 1), the same numbers.
 struct RowLanes {
-  Quad lin[3], angA[3], angB[3];
-  Quad effMass, lambda;
+  Doubles lin[3], angA[3], angB[3];
+  Doubles effMass, lambda;
   Mask pushed;  // λ was positive during this step
 };
 // A contact point's normal row: λ in [0, ∞) (formulateContact).
 struct NormalLanes : RowLanes {
-  Quad c0;  // C at the step's start [m]
+  Doubles c0;  // C at the step's start [m]
 };
 // A friction row: λ in [-μ Σλn, μ Σλn] (formulateFriction: β 0, bounds ±μ).
 struct FrictionLanes : RowLanes {
-  Quad mu;  // [1, or m for the twist row]
+  Doubles mu;  // [1, or m for the twist row]
 };
 
 struct Group {
-  int count = 0;    // lanes in use (1 to 4); the others are zero rows that change nothing
+  int count = 0;    // lanes in use (1 to 8); the others are zero rows that change nothing
   int normals = 0;  // the most normal rows of a lane
   int manifold[kLanes] = {};           // the manifolds' indices (ConstraintSet::frictions)
   int a[kLanes] = {}, b[kLanes] = {};  // their bodies
-  Quad mA, mB;                         // inverse masses [1/kg]; zero: the body does not move
-  Quad invIA[3], invIB[3];             // M̌⁻¹, rotational [1/(kg m²)]
-  Quad massScale, biasRate, impulseScale;  // the normals' softness (Softness)
-  Quad g10, g20, g21;                       // the friction rows' couplings (FrictionCoupling)
+  Doubles mA, mB;                         // inverse masses [1/kg]; zero: the body does not move
+  Doubles invIA[3], invIB[3];             // M̌⁻¹, rotational [1/(kg m²)]
+  Doubles massScale, biasRate, impulseScale;  // the normals' softness (Softness)
+  Doubles g10, g20, g21;                       // the friction rows' couplings (FrictionCoupling)
   NormalLanes normal[kMaxNormals];
   FrictionLanes friction[3];  // t1, t2, twist
 };
@@ -77,7 +78,7 @@ struct Kernel {
                   const Pass& pass, bool measure);
   // The warm start: each row's λ applied (v̌ += M̌⁻¹J̌ᵀλ), groups [first, last) in order.
   void (*warmStart)(const Group* groups, size_t first, size_t last, double* v, double* w);
-  const char* name;  // "avx2" or "sse2"
+  const char* name;  // "avx512", "avx2" or "sse2"
 };
 
 // The kernel the soft step uses: the widest this processor runs, unless useKernel chose another.
@@ -87,6 +88,8 @@ void useKernel(const Kernel* k);
 // Each, for the test that they agree.
 const Kernel& sse2Kernel();
 const Kernel& avx2Kernel();
+const Kernel& avx512Kernel();
 bool avx2Supported();
+bool avx512Supported();
 
 }  // namespace substep::lanes

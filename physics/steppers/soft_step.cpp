@@ -20,7 +20,7 @@
 // SolverSettings::colours, colour by colour as Box2D v3's solver.c does: no two manifolds of a
 // colour share a moving body, and each colour's (in the step's order) are solved on the step's
 // threads. Within a colour no manifold reads what another writes, so the trajectory is the same
-// to the last bit for any number of threads. The manifolds are solved four at a time in SIMD lanes
+// to the last bit for any number of threads. The manifolds are solved eight at a time in SIMD lanes
 // (soft_lanes.h, SolverSettings::lanes) in runs that share no moving body: the colours, or
 // uncoloured the levels of the step's order (orderLevels), which give its numbers to the last bit;
 // a run's groups go to the threads. Without the lanes (or in a split contact order) one manifold
@@ -249,7 +249,7 @@ class SoftStepper final : public Stepper {
     for (size_t k = 0; k < count; ++k) levelOrder_[static_cast<size_t>(next_[static_cast<size_t>(levelOf_[k])]++)] = static_cast<int>(k);
   }
 
-  // The manifolds four to a group (soft_lanes.h), in runs whose manifolds share no body that
+  // The manifolds eight to a group (soft_lanes.h), in runs whose manifolds share no body that
   // moves, solved run after run: the colours (from the highest down, the overflow last, one to a
   // group since its manifolds share bodies), or uncoloured the sweep's levels (orderLevels).
   void buildLanes(StepContext& c) {

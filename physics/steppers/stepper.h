@@ -24,7 +24,7 @@ struct StepStats {
   int directMethod = 0;    // A1: what answered: 1 Dantzig, 2 Lemke, 3 Gauss-Seidel and polish
   double residual = 0;     // A1: MLCP residual [m/s]; A2: largest row velocity change in the last sweep
   int rows = 0;
-  int laneRuns = 0;        // soft: the runs its manifolds were solved in, four at a time (0: one at a time)
+  int laneRuns = 0;        // soft: the runs its manifolds were solved in, eight at a time (0: one at a time)
 };
 
 // What a stepper works on during one step. The world fills it in s1/s2.
