@@ -329,7 +329,7 @@ class SoftStepper final : public Stepper {
         }
       }
     };
-    // Every run's groups in one job: a level is a few groups (nine on the 100-level pyramid),
+    // Every run's groups in one job: a level is a few groups (five on the 100-level pyramid),
     // less than one block, so a job a run would leave them all to the calling thread.
     pool(c).forRange(groups, 16, [&](size_t b, size_t e, int) {
       auto seg = std::upper_bound(segments_.begin(), segments_.end(), b,
