@@ -28,6 +28,7 @@
 #include "physics/failure.h"
 #include "physics/run.h"
 #include "physics/state_hash.h"
+#include "physics/steppers/soft_lanes.h"
 #include "physics/world.h"
 
 #include <CLI/CLI.hpp>
@@ -831,7 +832,7 @@ std::string printHeader(const Options& opt, const std::vector<Result>& results) 
             << " hardware threads, "
             << (opt.threads > 1 ? "substep cases on 1 and " + std::to_string(opt.threads) + " threads, the rest on one"
                                 : std::string("single-threaded runs"))
-            << "; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
+            << "; soft step lanes " << lanes::kernel().name << "; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
             << bulletVersion() << ", ODE " << lab::peerVersion(kOdePeer) << ", MuJoCo " << lab::peerVersion(kMujocoPeer)
             << "; load average " << loadAverage() << "\n";
   const std::string source = sourceState();
@@ -967,7 +968,8 @@ nlohmann::json benchJson(const Options& opt, const BenchPlan& plan, const TimedR
   nlohmann::json doc;
   doc["tool"] = "substep-bench";
   doc["date_utc"] = utcNow();
-  doc["machine"] = {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}};
+  doc["machine"] = {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()},
+                    {"lanes_kernel", lanes::kernel().name}};
   doc["build_type"] = SUBSTEP_BUILD_TYPE;
   doc["source"] = t.source;
   doc["bullet_version"] = bulletVersion();
