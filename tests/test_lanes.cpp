@@ -64,7 +64,8 @@ TEST(Lanes, SameTrajectoryAsOneManifoldAtATime) {
         EXPECT_EQ(one.laneRuns, 0) << what;
         EXPECT_GT(eight.laneRuns, 0) << what << ": the lanes were not used";
         ASSERT_EQ(one.hashes.size(), eight.hashes.size()) << what;
-        for (size_t k = 0; k < one.hashes.size(); ++k) ASSERT_EQ(one.hashes[k], eight.hashes[k]) << what << ", step " << k + 1;
+        for (size_t k = 0; k < one.hashes.size(); ++k)
+          ASSERT_EQ(one.hashes[k], eight.hashes[k]) << what << ", step " << k + 1;
       }
   }
 }

@@ -52,12 +52,12 @@ struct FrictionLanes : RowLanes {
 struct Group {
   int count = 0;    // lanes in use (1 to 8); the others are zero rows that change nothing
   int normals = 0;  // the most normal rows of a lane
-  int manifold[kLanes] = {};           // the manifolds' indices (ConstraintSet::frictions)
-  int a[kLanes] = {}, b[kLanes] = {};  // their bodies
-  Doubles mA, mB;                         // inverse masses [1/kg]; zero: the body does not move
-  Doubles invIA[3], invIB[3];             // M̌⁻¹, rotational [1/(kg m²)]
+  int manifold[kLanes] = {};                  // the manifolds' indices (ConstraintSet::frictions)
+  int a[kLanes] = {}, b[kLanes] = {};         // their bodies
+  Doubles mA, mB;                             // inverse masses [1/kg]; zero: the body does not move
+  Doubles invIA[3], invIB[3];                 // M̌⁻¹, rotational [1/(kg m²)]
   Doubles massScale, biasRate, impulseScale;  // the normals' softness (Softness)
-  Doubles g10, g20, g21;                       // the friction rows' couplings (FrictionCoupling)
+  Doubles g10, g20, g21;                      // the friction rows' couplings (FrictionCoupling)
   NormalLanes normal[kMaxNormals];
   FrictionLanes friction[3];  // t1, t2, twist
 };
