@@ -2,8 +2,9 @@
 
 #include "physics/constraints/joints.h"
 
-#include <cmath>
 #include <algorithm>
+#include <cassert>
+#include <cmath>
 #include <stdexcept>
 
 namespace substep {
@@ -108,6 +109,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   }
   manifoldRow_[nm] = at;
   frictions.resize(nm);  // every element written below
+  couplings.resize(nm);  // manifold k's friction unit's, written below (finishAll numbers them so)
   contacts.resize(static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
   frames_.resize(poses.size());
   parallel(poses.size(), 256, [&](size_t first, size_t last) {
@@ -173,6 +175,12 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       if (!exempt)
         for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
       frictions[mk] = f;
+      // M̌⁻¹J̌ᵀ, the effective masses and the friction couplings while the rows are in cache, not
+      // in a pass over every row afterwards (finishAll does the joints').
+      const BodyMass& mA = mass[static_cast<size_t>(m.a)];
+      const BodyMass& mB = mass[static_cast<size_t>(m.b)];
+      for (int k = 0; k < m.count + 3; ++k) finishRow(r[k], mA, mB, applyScale);
+      couplings[mk] = frictionCoupling(fr);
     }
   });
   // Solve order: joints, then the contacts by contactOrder (unitOrder()). Split: every contact's
@@ -202,14 +210,17 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction, -1});
   };
   forEachContactUnit(frictions, unitOrder_, normalUnits, frictionUnit);
-  finishAll(mass, applyScale);
+  finishAll(mass, applyScale, true);
   // The active set each contact block ended the last step with is where this step's starts.
   for (size_t k = 0; k < frictions.size(); ++k)
     if (frictions[k].unit >= 0)
       blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)].lastMask = manifolds[k].blockMask;
   // A5 solves island by island; the soft step, uncoloured, shares the islands out among its
   // threads (coloured, the colours share the manifolds out).
-  const bool softIslands = settings.algorithm == Algorithm::Soft && colourStart.empty() && pool_ && pool_->threads() > 1;
+  // In lanes (SolverSettings::lanes) it goes by levels and reads no island.
+  const bool softLanes = settings.lanes && settings.contactOrder == ContactOrder::Manifold;
+  const bool softIslands =
+      settings.algorithm == Algorithm::Soft && !softLanes && colourStart.empty() && pool_ && pool_->threads() > 1;
   findIslands((settings.islands && settings.algorithm == Algorithm::A5) || softIslands);
 }
 
@@ -457,24 +468,29 @@ void formBlock(const Row* b, const double (&unscale)[4], const BodyMass* mass, b
 
 }  // namespace
 
-void ConstraintSet::finishAll(const std::vector<BodyMass>& mass, double applyScale) {
+void ConstraintSet::finishAll(const std::vector<BodyMass>& mass, double applyScale, bool contactsFinished) {
   // Blocks and couplings numbered here, in unit order (finishUnit only fills them); then rows and
-  // units on the step's threads.
+  // units on the step's threads. The k-th Friction unit is manifold k's in every unit order.
+  int friction = 0;
   for (SolveUnit& u : units) {
     if (u.kind == SolveUnit::Single || u.block >= 0) continue;
     if (u.kind == SolveUnit::Friction) {
-      u.block = static_cast<int>(couplings.size());
-      couplings.emplace_back();
+      u.block = friction++;
     } else {
       u.block = static_cast<int>(blocks.size());
       blocks.emplace_back();
     }
   }
-  parallel(rows.size(), 512, [&](size_t first, size_t last) {
+  assert(friction == 0 || static_cast<size_t>(friction) == couplings.size());
+  const size_t finish = contactsFinished ? static_cast<size_t>(contactFirstRow) : rows.size();
+  parallel(finish, 512, [&](size_t first, size_t last) {
     finishRows(static_cast<int>(first), static_cast<int>(last), mass, applyScale);
   });
+  // Single rows have nothing more, the friction units' couplings were made with their rows.
+  if (contactsFinished && blocks.empty()) return;
   parallel(units.size(), 256, [&](size_t first, size_t last) {
-    for (size_t u = first; u < last; ++u) finishUnit(units[u], mass, applyScale);
+    for (size_t u = first; u < last; ++u)
+      if (!(contactsFinished && units[u].kind == SolveUnit::Friction)) finishUnit(units[u], mass, applyScale);
   });
 }
 
@@ -501,7 +517,7 @@ void ConstraintSet::finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, 
   if (u.kind == SolveUnit::Single) return;
   if (u.kind == SolveUnit::Friction) {
     const Row* r = &rows[static_cast<size_t>(u.first)];
-    couplings[static_cast<size_t>(u.block)] = {coupling(r[1], r[0]), coupling(r[2], r[0]), coupling(r[2], r[1])};
+    couplings[static_cast<size_t>(u.block)] = frictionCoupling(r);
     return;
   }
   // A block's rows share their two bodies (one joint part, one manifold), so its Γ entries are
@@ -547,7 +563,7 @@ void ConstraintSet::reformulate(const std::vector<Pose>& poses, const std::vecto
       for (int k = 0; k < 3; ++k) fr[k].velocityLevel = level;
       carryFrictionImpulse(impulse, frames_[static_cast<size_t>(f.b)], fr);
     }
-    finishAll(mass, applyScale);
+    finishAll(mass, applyScale, false);
   } else {
     refinishJoints(mass, applyScale);
   }

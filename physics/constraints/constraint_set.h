@@ -75,7 +75,7 @@ class ConstraintSet {
   std::vector<Row> rows;
   std::vector<SolveUnit> units;
   std::vector<BlockData> blocks;  // of the stable and contact blocks
-  std::vector<FrictionCoupling> couplings;  // of the Friction units (their SolveUnit::block)
+  std::vector<FrictionCoupling> couplings;  // of the Friction units (their SolveUnit::block): manifold k's is k
   std::vector<ContactDef> contacts;    // one normal row per contact point
   std::vector<FrictionDef> frictions;  // three friction rows per manifold
   std::vector<JointRef> joints;
@@ -109,7 +109,8 @@ class ConstraintSet {
   void formulateJoint(const JointRef& ref, const std::vector<Pose>& poses, double h, bool jacobianOnly);
   // M̌⁻¹J̌ᵀ and effective masses of rows, and the blocks or couplings of units: of everything, of
   // one joint's rows and units, of a row range, of one unit.
-  void finishAll(const std::vector<BodyMass>& mass, double applyScale);
+  // contactsFinished: build() finished the manifolds' rows and couplings as it formulated them.
+  void finishAll(const std::vector<BodyMass>& mass, double applyScale, bool contactsFinished);
   void finishJoint(const JointRef& ref, const std::vector<BodyMass>& mass, double applyScale);
   void finishRows(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale);
   void finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale);

@@ -101,6 +101,11 @@ inline double coupling(const Row& i, const Row& j) {
   return i.lin.dot(j.mA * j.lin) + i.angA.dot(j.mAngA) + i.lin.dot(j.mB * j.lin) + i.angB.dot(j.mAngB);
 }
 
+// A manifold's three friction rows' couplings (rows finished).
+inline FrictionCoupling frictionCoupling(const Row* r) {
+  return {coupling(r[1], r[0]), coupling(r[2], r[0]), coupling(r[2], r[1])};
+}
+
 // Σλ of a friction row's normal rows: what its bounds scale with.
 inline double normalImpulse(const Row& r, const Row* rows) {
   double s = 0;
