@@ -186,18 +186,11 @@ bool World::geometry() {
   manifolds_.beginStep(true);
   frames_.resize(state_.bodies.size());
   for (size_t i = 0; i < state_.bodies.size(); ++i) frames_[i] = state_.bodies[i].pose();
-  // A plane or triangle mesh is always B, so the normal points out of it; last step's manifold
-  // of each pair is found by a merge, in pair order.
-  const size_t np = pairs_.size();
-  olds_.resize(np);
-  for (size_t k = 0; k < np; ++k) {
-    auto& [i, j] = pairs_[k];
-    if (isSurface(model_.bodies[static_cast<size_t>(i)].shape.type)) std::swap(i, j);
-    olds_[k] = manifolds_.previous(i, j);
-  }
   // Each pair's manifold on the step's threads, a block of pairs at a time into the block's own
   // list; the lists are then taken in block order, so the manifolds and the ids of new points
-  // are the same for any number of threads.
+  // are the same for any number of threads. Last step's manifold of each pair is found by a
+  // merge, in pair order, each block's from where its first pair would be.
+  const size_t np = pairs_.size();
   constexpr size_t kPairBlock = 64;
   const size_t blocks = (np + kPairBlock - 1) / kPairBlock;
   if (pairBlocks_.size() < blocks) pairBlocks_.resize(blocks);
@@ -206,15 +199,20 @@ bool World::geometry() {
     out.clear();
     int cached = 0, fresh = 0;
     ContactPatch patch;
-    for (size_t k = blk * kPairBlock; k < std::min(np, (blk + 1) * kPairBlock); ++k) {
-      const int a = pairs_[k].first, b = pairs_[k].second;
+    const size_t first = blk * kPairBlock, last = std::min(np, (blk + 1) * kPairBlock);
+    size_t cursor = manifolds_.start(pairs_[first].first, pairs_[first].second);
+    for (size_t k = first; k < last; ++k) {
+      // A plane or triangle mesh is always B, so the normal points out of it.
+      auto& [i, j] = pairs_[k];
+      if (isSurface(model_.bodies[static_cast<size_t>(i)].shape.type)) std::swap(i, j);
+      const int a = i, b = j;
       const Body& A = model_.bodies[static_cast<size_t>(a)];
       const Body& B = model_.bodies[static_cast<size_t>(b)];
       const Pose pA = state_.bodies[static_cast<size_t>(a)].pose();
       const Pose pB = state_.bodies[static_cast<size_t>(b)].pose();
       // A pair that has barely moved relative to itself since its points were found keeps them; a
       // pair of which neither body moves (static or asleep) keeps them too, for when it wakes.
-      const Manifold* old = olds_[k];
+      const Manifold* old = manifolds_.previous(a, b, cursor);
       if (old && ((!asleep_.empty() && dormant(a) && dormant(b)) || pairShiftBelow(*old, pA, pB, kPairCacheShift))) {
         out.emplace_back();
         ManifoldCache::kept(out.back(), *old, frames_[static_cast<size_t>(a)], frames_[static_cast<size_t>(b)]);
@@ -238,13 +236,17 @@ bool World::geometry() {
                           std::max(A.restitution, B.restitution), patch, rB, old);
       fresh += newPoints(out.back());
     }
+    int points = 0;
+    for (const Manifold& m : out) points += m.count;
     pairBlocks_[blk].cached = cached;  // once: threads counting into neighbouring blocks would share a cache line
     pairBlocks_[blk].fresh = fresh;
+    pairBlocks_[blk].points = points;
   });
   // Where each block's manifolds go and the id its first new point takes; then placed.
   size_t at = 0;
   uint32_t fresh = 0;
   report_.cachedPairs = 0;
+  report_.contactPoints = 0;
   for (size_t blk = 0; blk < blocks; ++blk) {
     PairBlock& b = pairBlocks_[blk];
     b.at = at;
@@ -252,6 +254,7 @@ bool World::geometry() {
     at += b.manifolds.size();
     fresh += static_cast<uint32_t>(b.fresh);
     report_.cachedPairs += b.cached;
+    report_.contactPoints += b.points;
   }
   const uint32_t firstId = manifolds_.claimIds(fresh);
   std::vector<Manifold>& placed = manifolds_.place(at);
@@ -267,9 +270,6 @@ bool World::geometry() {
   });
   report_.pairs = static_cast<int>(pairs_.size());
   report_.manifolds = static_cast<int>(manifolds_.manifolds().size());
-  int points = 0;
-  for (const Manifold& m : manifolds_.manifolds()) points += m.count;
-  report_.contactPoints = points;
   return true;
 }
 

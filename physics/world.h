@@ -125,11 +125,11 @@ class World {
   std::unique_ptr<Stepper> stepper_;
   StepContext ctx_;
   std::vector<std::pair<int, int>> pairs_;       // this step's, (A, B) as the manifold has them
-  std::vector<const Manifold*> olds_;            // per pair: last step's manifold, or null
   // s1's manifolds by block of pairs (a thread's share), then placed in the step's list.
   struct PairBlock {
     std::vector<Manifold> manifolds;  // the block's, in pair order
     int cached = 0, fresh = 0;        // how many were kept from last step; their new points
+    int points = 0;                   // contact points of its manifolds
     size_t at = 0;                    // where the block's manifolds go in the step's list
     uint32_t firstId = 0;             // the id of its first new point, from the step's first
   };

@@ -470,6 +470,41 @@ TEST(Manifold, ReuseKeepsPointsImpulsesAndRemeasuresDepth) {
   EXPECT_GT(pairShift(m, pose, kGroundPose), kPairCacheShift);
 }
 
+// Threads merge the step's pairs with last step's manifolds a run at a time: a run that starts
+// anywhere, at a pair last step had or not, finds what one merge from the first pair finds.
+TEST(Manifold, ARunsMergeFromItsStartFindsWhatTheWholeMergeFinds) {
+  ManifoldCache cache;
+  cache.beginStep();
+  for (auto [a, b] : std::vector<std::pair<int, int>>{{1, 0}, {0, 3}, {5, 2}, {2, 6}, {4, 7}, {9, 8}}) {
+    Manifold m;
+    m.a = a;
+    m.b = b;
+    cache.take(m);
+  }
+  cache.beginStep();
+  // This step's pairs in key order, as the broadphase gives them: some new, (2, 5) the other way
+  // round (a different orientation is not the same manifold), one past the last.
+  const std::vector<std::pair<int, int>> pairs{{1, 0}, {0, 2}, {0, 3}, {2, 5}, {2, 6}, {3, 4}, {4, 7}, {9, 8}, {9, 10}};
+  std::vector<const Manifold*> whole;
+  size_t cursor = 0;
+  for (auto [a, b] : pairs) whole.push_back(cache.previous(a, b, cursor));
+  ASSERT_NE(whole[0], nullptr);
+  EXPECT_EQ(whole[1], nullptr);
+  ASSERT_NE(whole[2], nullptr);
+  EXPECT_EQ(whole[2]->b, 3);
+  EXPECT_EQ(whole[3], nullptr);
+  EXPECT_NE(whole[4], nullptr);
+  EXPECT_EQ(whole[5], nullptr);
+  EXPECT_NE(whole[6], nullptr);
+  EXPECT_NE(whole[7], nullptr);
+  EXPECT_EQ(whole[8], nullptr);
+  for (size_t first = 0; first < pairs.size(); ++first) {
+    size_t run = cache.start(pairs[first].first, pairs[first].second);
+    for (size_t k = first; k < pairs.size(); ++k)
+      EXPECT_EQ(cache.previous(pairs[k].first, pairs[k].second, run), whole[k]) << "run from " << first << ", pair " << k;
+  }
+}
+
 // The closed forms substep uses before (or instead of) FCL: box-box and round-box pairs further
 // apart than the margin are dropped without asking FCL, sphere and capsule pairs get their normal
 // and depth from their core segments. Checked against FCL's own answer on random pairs: a pair

@@ -44,13 +44,26 @@ bool pairShiftBelow(const Manifold& m, const Pose& poseA, const Pose& poseB, dou
   return pairShift(m, poseA, poseB) < limit;
 }
 
-const Manifold* ManifoldCache::previous(int a, int b) {
-  // Pairs arrive ordered by their unordered key (min, max); last step's list is in the same order.
-  const auto key = [](const Manifold& m) { return std::make_pair(std::min(m.a, m.b), std::max(m.a, m.b)); };
-  const auto k = std::make_pair(std::min(a, b), std::max(a, b));
-  while (cursor_ < previous_.size() && key(previous_[cursor_]) < k) ++cursor_;
-  if (cursor_ < previous_.size() && previous_[cursor_].a == a && previous_[cursor_].b == b) return &previous_[cursor_];
+namespace {
+
+// Pairs arrive ordered by their unordered key (min, max); last step's list is in the same order.
+std::pair<int, int> pairKey(int a, int b) { return {std::min(a, b), std::max(a, b)}; }
+std::pair<int, int> pairKey(const Manifold& m) { return pairKey(m.a, m.b); }
+
+}  // namespace
+
+const Manifold* ManifoldCache::previous(int a, int b, size_t& cursor) const {
+  const auto k = pairKey(a, b);
+  while (cursor < previous_.size() && pairKey(previous_[cursor]) < k) ++cursor;
+  if (cursor < previous_.size() && previous_[cursor].a == a && previous_[cursor].b == b) return &previous_[cursor];
   return nullptr;
+}
+
+size_t ManifoldCache::start(int a, int b) const {
+  const auto k = pairKey(a, b);
+  return static_cast<size_t>(
+      std::partition_point(previous_.begin(), previous_.end(), [&](const Manifold& m) { return pairKey(m) < k; }) -
+      previous_.begin());
 }
 
 void ManifoldCache::reuse(const Manifold& old, const Frame& poseA, const Frame& poseB) {

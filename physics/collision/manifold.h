@@ -82,7 +82,12 @@ class ManifoldCache {
   void add(int a, int b, const Pose& poseA, const Pose& poseB, double friction, double restitution,
            const ContactPatch& patch, double reach);
   // Last step's manifold of pair (a, b) (same order rule as add), or null.
-  const Manifold* previous(int a, int b);
+  const Manifold* previous(int a, int b) { return previous(a, b, cursor_); }
+  // The same for one run of the step's pairs, so that threads can each merge their own: the
+  // merge goes on from `cursor` (an index in last step's list), which starts at start(a, b) of
+  // the run's first pair.
+  const Manifold* previous(int a, int b, size_t& cursor) const;
+  size_t start(int a, int b) const;  // the first of last step's manifolds whose pair is not before (a, b)
   // Keeps last step's manifold `old` for this step: same points on the bodies, depths measured at
   // the current poses, ages advanced, impulses kept. Call in the pair order of add().
   void reuse(const Manifold& old, const Frame& poseA, const Frame& poseB);

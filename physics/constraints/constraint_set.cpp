@@ -51,9 +51,11 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   }
   // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
   // is reset field by field, without a zero fill of the whole row (docs/benchmarks.md).
-  size_t total = jointLambda_.size();
-  for (const Manifold& m : manifolds) total += static_cast<size_t>(m.count) + 3;
-  rows.resize(total);
+  const size_t nm = manifolds.size();
+  manifoldPoint_.resize(nm + 1);
+  manifoldPoint_[0] = 0;
+  for (size_t k = 0; k < nm; ++k) manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
+  rows.resize(jointLambda_.size() + static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm);
   size_t next = 0;
   auto take = [&](int n) {
     Row* r = rows.data() + next;
@@ -93,11 +95,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // the point counts, so that the manifolds are formulated on the step's threads, each writing
   // only its own rows and definitions.
   contactFirstRow = static_cast<int>(next);
-  const size_t nm = manifolds.size();
   manifoldRow_.resize(nm + 1);
-  manifoldPoint_.resize(nm + 1);
-  manifoldPoint_[0] = 0;
-  for (size_t k = 0; k < nm; ++k) manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
   // The rows: in manifold order, or coloured, by ascending colour (each colour's in manifold
   // order), so that a colour's rows are one block of memory.
   colourManifolds(manifolds, mass, settings.algorithm == Algorithm::Soft && settings.colours);
@@ -105,11 +103,12 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   for (size_t q = 0; q < nm; ++q) {
     const size_t k = colourStart.empty() ? q : static_cast<size_t>(colourOrder[q]);
     manifoldRow_[k] = at;
-    at += manifolds[k].count + 3;
+    at += manifoldPoint_[k + 1] - manifoldPoint_[k] + 3;
   }
   manifoldRow_[nm] = at;
   frictions.resize(nm);  // every element written below
   couplings.resize(nm);  // manifold k's friction unit's, written below (finishAll numbers them so)
+  bounces_.resize(nm);
   contacts.resize(static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
   frames_.resize(poses.size());
   parallel(poses.size(), 256, [&](size_t first, size_t last) {
@@ -175,6 +174,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       if (!exempt)
         for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
       frictions[mk] = f;
+      bounces_[mk] = m.restitution != 0;
       // M̌⁻¹J̌ᵀ, the effective masses and the friction couplings while the rows are in cache, not
       // in a pass over every row afterwards (finishAll does the joints').
       const BodyMass& mA = mass[static_cast<size_t>(m.a)];
@@ -183,6 +183,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       couplings[mk] = frictionCoupling(fr);
     }
   });
+  bouncing.clear();
+  for (size_t k = 0; k < nm; ++k)
+    if (bounces_[k])
+      for (int p = manifoldPoint_[k]; p < manifoldPoint_[k + 1]; ++p) bouncing.push_back(p);
   // Solve order: joints, then the contacts by contactOrder (unitOrder()). Split: every contact's
   // normal row, then the friction rows; with friction interleaved, Gauss-Seidel spends its sweeps
   // on friction before the normal impulses that bound it exist: a 5-box stack under A2 at 10
@@ -589,11 +593,11 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
 }
 
 void ConstraintSet::recordApproach(const Vec3* v, const Vec3* w) {
-  // Only a bouncing pair reads it (applyRestitution): the others skip the row's J̌v̌.
-  parallel(contacts.size(), 1024, [&](size_t first, size_t last) {
+  // Only a bouncing pair reads it (applyRestitution); the others' stays build()'s zero.
+  parallel(bouncing.size(), 1024, [&](size_t first, size_t last) {
     for (size_t k = first; k < last; ++k) {
-      ContactDef& c = contacts[k];
-      c.approach = c.restitution != 0 ? rowVelocity(rows[static_cast<size_t>(c.row)], v, w) : 0.0;
+      ContactDef& c = contacts[static_cast<size_t>(bouncing[k])];
+      c.approach = rowVelocity(rows[static_cast<size_t>(c.row)], v, w);
     }
   });
 }

@@ -78,6 +78,9 @@ class ConstraintSet {
   std::vector<FrictionCoupling> couplings;  // of the Friction units (their SolveUnit::block): manifold k's is k
   std::vector<ContactDef> contacts;    // one normal row per contact point
   std::vector<FrictionDef> frictions;  // three friction rows per manifold
+  // The contacts (indices in `contacts`, in order) whose pair has restitution: the only ones
+  // recordApproach and restitution read; on a pyramid, none.
+  std::vector<int> bouncing;
   std::vector<JointRef> joints;
   int contactFirstRow = 0;             // rows from here on are contacts and friction
 
@@ -124,6 +127,7 @@ class ConstraintSet {
     else f(0, count);
   }
   std::vector<int> manifoldRow_, manifoldPoint_;  // per manifold: its first row and first point; one past the last
+  std::vector<unsigned char> bounces_;            // per manifold: its pair has restitution
   double slop_ = 0;
   bool stableBlocks_ = false, contactBlocks_ = false, speculative_ = true, motorUnscaled_ = true;
   std::vector<double> jointLambda_;  // per joint row, last step's impulses

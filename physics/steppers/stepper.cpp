@@ -340,9 +340,10 @@ void applyRestitution(StepContext& c, const Vec3* v, const Vec3* w, double apply
   if (!c.settings->restitution) return;
   ConstraintSet& cs = *c.constraints;
   const double threshold = c.settings->restitutionThreshold;
-  for (const ContactDef& contact : cs.contacts) {
+  for (const int k : cs.bouncing) {
+    const ContactDef& contact = cs.contacts[static_cast<size_t>(k)];
     Row& r = cs.rows[static_cast<size_t>(contact.row)];
-    if (contact.restitution == 0 || contact.approach > -threshold || !r.pushed) continue;
+    if (contact.approach > -threshold || !r.pushed) continue;
     if (!c.bounced) {
       c.endV.assign(v, v + c.bodies());
       c.endW.assign(w, w + c.bodies());
