@@ -184,8 +184,6 @@ bool World::geometry() {
     return false;
   }
   manifolds_.beginStep(true);
-  frames_.resize(state_.bodies.size());
-  for (size_t i = 0; i < state_.bodies.size(); ++i) frames_[i] = state_.bodies[i].pose();
   // Each pair's manifold on the step's threads, a block of pairs at a time into the block's own
   // list; the lists are then taken in block order, so the manifolds and the ids of new points
   // are the same for any number of threads. Last step's manifold of each pair is found by a
@@ -215,7 +213,7 @@ bool World::geometry() {
       const Manifold* old = manifolds_.previous(a, b, cursor);
       if (old && ((!asleep_.empty() && dormant(a) && dormant(b)) || pairShiftBelow(*old, pA, pB, kPairCacheShift))) {
         out.emplace_back();
-        ManifoldCache::kept(out.back(), *old, frames_[static_cast<size_t>(a)], frames_[static_cast<size_t>(b)]);
+        ManifoldCache::kept(out.back(), *old);
         ++cached;
         continue;
       }

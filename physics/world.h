@@ -137,7 +137,6 @@ class World {
   std::vector<double> reach_;  // per body: how far turning moves a point this step, plus half the margin [m]
   std::vector<Vec3> move_;     // per body: h v, its free-flight move this step without gravity [m]
   std::vector<Vec3> approachV_;  // per body: the velocity restitution measures approach speeds with
-  std::vector<Frame> frames_;    // per body: its pose with a rotation matrix, for the manifold cache
   // Sleeping (empty while settings.sleep is off): per body asleep, the island it fell asleep in
   // (its smallest body index) and how long it has been still [s]; the manifolds the step solves
   // (those with an awake body) and where each sits in manifolds_.

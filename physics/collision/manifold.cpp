@@ -66,19 +66,15 @@ size_t ManifoldCache::start(int a, int b) const {
       previous_.begin());
 }
 
-void ManifoldCache::reuse(const Manifold& old, const Frame& poseA, const Frame& poseB) {
+void ManifoldCache::reuse(const Manifold& old) {
   Manifold m;
-  kept(m, old, poseA, poseB);
+  kept(m, old);
   take(m);
 }
 
-void ManifoldCache::kept(Manifold& m, const Manifold& old, const Frame& poseA, const Frame& poseB) {
+void ManifoldCache::kept(Manifold& m, const Manifold& old) {
   m = old;  // detection pose kept: the shift is measured from there, so it cannot creep
-  for (int i = 0; i < m.count; ++i) {
-    ManifoldPoint& p = m.points[i];
-    p.depth = -(poseA.apply(p.localA) - poseB.apply(p.localB)).dot(poseB.rotate(p.localN));
-    ++p.age;
-  }
+  for (int i = 0; i < m.count; ++i) ++m.points[i].age;
 }
 
 void ManifoldCache::take(Manifold& m) {

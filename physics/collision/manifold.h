@@ -15,7 +15,7 @@ namespace substep {
 constexpr int kMaxManifoldPoints = 4;
 constexpr double kMatchDistance = 0.02;  // [m]
 // A pair whose relative pose has moved less than this since its manifold was detected keeps the
-// manifold (points fixed on the bodies, depths re-measured) instead of running the narrowphase
+// manifold (points fixed on the bodies) instead of running the narrowphase
 // again, as Jolt's body-pair cache does: no point of either body has moved by more [m].
 constexpr double kPairCacheShift = 1e-3;
 
@@ -28,7 +28,8 @@ struct ManifoldPoint {
   // (ContactFrame::World formulates from these).
   Vec3 worldN = Vec3::UnitY();
   Vec3 armA = Vec3::Zero(), armB = Vec3::Zero();
-  double depth = 0;            // penetration when detected [m]
+  double depth = 0;            // penetration when detected [m] (a kept manifold does not re-measure it:
+                               // the rows and snapshots measure their own at the step's poses)
   double lambda = 0;           // its normal impulse of the last step [N s]
   int age = 0;                 // steps this point has persisted
   uint32_t id = 0;             // stable identity while it persists
@@ -88,9 +89,9 @@ class ManifoldCache {
   // the run's first pair.
   const Manifold* previous(int a, int b, size_t& cursor) const;
   size_t start(int a, int b) const;  // the first of last step's manifolds whose pair is not before (a, b)
-  // Keeps last step's manifold `old` for this step: same points on the bodies, depths measured at
-  // the current poses, ages advanced, impulses kept. Call in the pair order of add().
-  void reuse(const Manifold& old, const Frame& poseA, const Frame& poseB);
+  // Keeps last step's manifold `old` for this step: same points on the bodies, ages advanced,
+  // impulses kept. Call in the pair order of add().
+  void reuse(const Manifold& old);
 
   // add() and reuse() in two halves, so that the first can run on many threads: made() and kept()
   // build a pair's manifold from last step's `old` (null: none) without touching the cache (a new
@@ -99,7 +100,7 @@ class ManifoldCache {
   // default-constructed `m`; kept() overwrites any.
   static void made(Manifold& m, int a, int b, const Pose& poseA, const Pose& poseB, double friction, double restitution,
                    const ContactPatch& patch, double reach, const Manifold* old);
-  static void kept(Manifold& m, const Manifold& old, const Frame& poseA, const Frame& poseB);
+  static void kept(Manifold& m, const Manifold& old);
   void take(Manifold& m);
   // Or, for many threads: beginStep(true) keeps the storage of the list two steps old, place(n)
   // makes this step's list n long for the caller to fill in pair order (every element written),
