@@ -11,21 +11,14 @@
 
 namespace substep::lanes {
 
-bool avx2Supported() {
+// __builtin_cpu_supports takes only a literal, so one function a feature, under one guard.
 #if defined(__x86_64__) || defined(__i386__)
-  return __builtin_cpu_supports("avx2");
+bool avx2Supported() { return __builtin_cpu_supports("avx2"); }
+bool avx512Supported() { return __builtin_cpu_supports("avx512f"); }
 #else
-  return false;
+bool avx2Supported() { return false; }
+bool avx512Supported() { return false; }
 #endif
-}
-
-bool avx512Supported() {
-#if defined(__x86_64__) || defined(__i386__)
-  return __builtin_cpu_supports("avx512f");
-#else
-  return false;
-#endif
-}
 
 namespace {
 std::atomic<const Kernel*> chosen{nullptr};
