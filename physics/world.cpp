@@ -185,16 +185,20 @@ bool World::geometry() {
   }
   manifolds_.beginStep(true);
   // Each pair's manifold on the step's threads, a block of pairs at a time into the block's own
-  // list; the lists are then taken in block order, so the manifolds and the ids of new points
-  // are the same for any number of threads. Last step's manifold of each pair is found by a
-  // merge, in pair order, each block's from where its first pair would be.
+  // list (a kept one by its place in last step's); the lists are then taken in block order, so
+  // the manifolds and the ids of new points are the same for any number of threads. Last step's
+  // manifold of each pair is found by a merge, in pair order, each block's from where its first
+  // pair would be.
   const size_t np = pairs_.size();
   constexpr size_t kPairBlock = 64;
   const size_t blocks = (np + kPairBlock - 1) / kPairBlock;
   if (pairBlocks_.size() < blocks) pairBlocks_.resize(blocks);
   pool_->forBlocks(blocks, [&](size_t blk, int thread) {
-    std::vector<Manifold>& out = pairBlocks_[blk].manifolds;
+    std::vector<Manifold>& out = pairBlocks_[blk].made;
+    std::vector<int>& from = pairBlocks_[blk].from;
     out.clear();
+    from.clear();
+    int points = 0;
     int cached = 0, fresh = 0;
     ContactPatch patch;
     const size_t first = blk * kPairBlock, last = std::min(np, (blk + 1) * kPairBlock);
@@ -212,8 +216,8 @@ bool World::geometry() {
       // pair of which neither body moves (static or asleep) keeps them too, for when it wakes.
       const Manifold* old = manifolds_.previous(a, b, cursor);
       if (old && ((!asleep_.empty() && dormant(a) && dormant(b)) || pairShiftBelow(*old, pA, pB, kPairCacheShift))) {
-        out.emplace_back();
-        ManifoldCache::kept(out.back(), *old);
+        from.push_back(static_cast<int>(cursor));  // previous() leaves the cursor on it
+        points += old->count;
         ++cached;
         continue;
       }
@@ -233,9 +237,9 @@ bool World::geometry() {
       ManifoldCache::made(out.back(), a, b, pA, pB, std::sqrt(A.friction * B.friction),
                           std::max(A.restitution, B.restitution), patch, rB, old);
       fresh += newPoints(out.back());
+      points += out.back().count;
+      from.push_back(-static_cast<int>(out.size()));
     }
-    int points = 0;
-    for (const Manifold& m : out) points += m.count;
     pairBlocks_[blk].cached = cached;  // once: threads counting into neighbouring blocks would share a cache line
     pairBlocks_[blk].fresh = fresh;
     pairBlocks_[blk].points = points;
@@ -249,7 +253,7 @@ bool World::geometry() {
     PairBlock& b = pairBlocks_[blk];
     b.at = at;
     b.firstId = fresh;
-    at += b.manifolds.size();
+    at += b.from.size();
     fresh += static_cast<uint32_t>(b.fresh);
     report_.cachedPairs += b.cached;
     report_.contactPoints += b.points;
@@ -260,9 +264,13 @@ bool World::geometry() {
     const PairBlock& b = pairBlocks_[blk];
     uint32_t id = firstId + b.firstId;
     Manifold* to = placed.data() + b.at;
-    for (const Manifold& m : b.manifolds) {
-      *to = m;
-      id = numberNewPoints(*to, id);
+    for (const int k : b.from) {
+      if (k >= 0) {
+        ManifoldCache::kept(*to, manifolds_.lastStep()[static_cast<size_t>(k)]);
+      } else {
+        *to = b.made[static_cast<size_t>(-1 - k)];
+        id = numberNewPoints(*to, id);
+      }
       ++to;
     }
   });

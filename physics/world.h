@@ -127,7 +127,10 @@ class World {
   std::vector<std::pair<int, int>> pairs_;       // this step's, (A, B) as the manifold has them
   // s1's manifolds by block of pairs (a thread's share), then placed in the step's list.
   struct PairBlock {
-    std::vector<Manifold> manifolds;  // the block's, in pair order
+    std::vector<Manifold> made;       // the block's new manifolds (narrowphase), in pair order
+    // Each manifold of the block in pair order: k >= 0 last step's k-th kept, copied once, when
+    // placed (a manifold is 700 bytes); k < 0 made[-1 - k].
+    std::vector<int> from;
     int cached = 0, fresh = 0;        // how many were kept from last step; their new points
     int points = 0;                   // contact points of its manifolds
     size_t at = 0;                    // where the block's manifolds go in the step's list

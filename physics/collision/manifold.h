@@ -115,6 +115,8 @@ class ManifoldCache {
     return first;
   }
   const std::vector<Manifold>& manifolds() const { return current_; }
+  // Last step's, which previous() finds in (the cursor it leaves is the index).
+  const std::vector<Manifold>& lastStep() const { return previous_; }
   std::vector<Manifold>& manifolds() { return current_; }
   void clear();
 
