@@ -32,6 +32,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstdint>
+#include <unistd.h>
 
 namespace substep {
 
@@ -280,6 +281,7 @@ class SoftStepper final : public Stepper {
     c.stats.laneRuns = static_cast<int>(segments_.size());
     groups_.resize(groups);
     const double h = c.h() / c.n();
+    const bool ahead = fetchAhead(cs.rows);
     const auto fill = [&](const Segment& seg, size_t gi) {
       lanes::Group& g = groups_[gi];
       const size_t per = seg.serial ? 1 : lanes::kLanes;
@@ -287,6 +289,9 @@ class SoftStepper final : public Stepper {
       g.count = static_cast<int>(std::min(per, seg.count - first));
       g.normals = 0;
       for (int l = 0; l < lanes::kLanes; ++l) {
+        const size_t at = seg.order + first + static_cast<size_t>(l), end = seg.order + seg.count;
+        if (ahead && at + 2 * kAhead < end) __builtin_prefetch(&cs.frictions[static_cast<size_t>(order[at + 2 * kAhead])]);
+        if (ahead && at + kAhead < end) prefetchRows(rows, cs.frictions[static_cast<size_t>(order[at + kAhead])]);
         // A lane not in use reads lane 0's bodies and, with zero rows and masses, writes nothing.
         const bool used = l < g.count;
         const size_t k = static_cast<size_t>(order[seg.order + first + static_cast<size_t>(used ? l : 0)]);
@@ -350,6 +355,23 @@ class SoftStepper final : public Stepper {
     to.effMass.x[l] = r ? r->effMass : 0;
     to.lambda.x[l] = r ? r->lambda : 0;
     to.pushed.x[l] = r && r->pushed ? -1 : 0;
+  }
+
+  // buildLanes takes the manifolds in the runs' order, not in their rows' order in memory, which
+  // no hardware prefetch follows. Rows that outgrow the core's L2 cache come from L3 or memory:
+  // those kAhead manifolds on are then fetched while these are copied (docs/benchmarks.md).
+  static constexpr size_t kAhead = 2;
+  static bool fetchAhead(const std::vector<Row>& rows) {
+    static const size_t l2 = [] {
+      const long bytes = sysconf(_SC_LEVEL2_CACHE_SIZE);
+      return bytes > 0 ? static_cast<size_t>(bytes) : size_t{1} << 20;
+    }();
+    return rows.size() * sizeof(Row) > l2;
+  }
+  static void prefetchRows(const Row* rows, const FrictionDef& f) {
+    const char* p = reinterpret_cast<const char*>(rows + f.firstNormal);
+    const char* end = reinterpret_cast<const char*>(rows + f.row + 3);
+    for (; p < end; p += 64) __builtin_prefetch(p);
   }
 
   // f(group's row lanes, lane, row) for every row of every manifold in the lanes.
