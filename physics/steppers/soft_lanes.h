@@ -1,6 +1,6 @@
 // The soft step's contact solve, eight manifolds at a time (Box2D v3's wide contact solver,
 // contact_solver.c, in 3D and in doubles). Eight manifolds that share no body that moves (of one
-// colour, or of one level of the step's order: SoftStepper::orderLevels) are solved side by side,
+// colour, or of one run of the step's order: SoftStepper::orderRuns) are solved side by side,
 // each in a lane of the same instructions: the sweep's work a manifold is the same, its
 // instructions an eighth with AVX-512 (a quarter with AVX2 and the baseline, which solve a group
 // as two parts of four). Each lane does what the soft step's one-manifold solve does

@@ -22,7 +22,7 @@
 // threads. Within a colour no manifold reads what another writes, so the trajectory is the same
 // to the last bit for any number of threads. The manifolds are solved eight at a time in SIMD lanes
 // (soft_lanes.h, SolverSettings::lanes) in runs that share no moving body: the colours, or
-// uncoloured the levels of the step's order (orderLevels), which give its numbers to the last bit;
+// uncoloured runs of the step's order (orderRuns), which give its numbers to the last bit;
 // a run's groups go to the threads. Without the lanes (or in a split contact order) one manifold
 // at a time, uncoloured the islands to the threads island by island: the same trajectory again.
 #include "physics/steppers/soft_lanes.h"
@@ -217,42 +217,80 @@ class SoftStepper final : public Stepper {
       f(ci == ConstraintSet::kColours ? ci : ConstraintSet::kColours - 1 - ci);
   }
 
-  // The sweep's levels: the step's order of the manifolds (the uncoloured sweep's) cut into runs
-  // that can be solved at once without changing a bit of it. A manifold's level is one more than
-  // the highest of the manifolds before it on either of its bodies that move, so it comes after
-  // every manifold whose velocities it reads in the step's order, and before those that read its
-  // own; a level's manifolds share no moving body. Within a level they keep the step's order.
-  // A pyramid's levels run diagonally up its rows (about twice its width of them), a pile of
-  // separate columns has its columns side by side in each.
-  void orderLevels(StepContext& c) {
+  // The sweep's runs: the step's order of the manifolds (the uncoloured sweep's) cut into runs
+  // that can be solved at once without changing a bit of it. The sequential sweep gives a
+  // manifold each moving body's velocity as the manifold before it on that body left it: so it
+  // may be solved once those (its chains' previous, one a body) are, and at once with any other
+  // manifold ready then, since two ready manifolds share no moving body (the later would wait
+  // for the earlier). Each run takes the ready manifolds, those with the longest chain of
+  // manifolds waiting behind them first, and when there are more than a group's eight, a whole
+  // number of groups of them: the rest wait for the next run, so that the lanes are full (a group
+  // costs the same with one lane in use as with eight; docs/algorithms.md, "Lanes and runs").
+  // Within a run the manifolds keep the step's order.
+  void orderRuns(StepContext& c) {
     const ConstraintSet& cs = *c.constraints;
     const size_t count = cs.frictions.size();
-    lastLevel_.assign(c.bodies(), 0);
-    levelOf_.resize(count);
-    int levels = 0;
+    // Each manifold's successors (the next on each of its moving bodies), how many predecessors
+    // it waits for, and the longest chain from it to the sweep's end.
+    lastOn_.assign(c.bodies(), -1);
+    after_.assign(2 * count, -1);
+    waiting_.assign(count, 0);
     for (size_t k = 0; k < count; ++k) {
       const FrictionDef& f = cs.frictions[k];
       // storeMoving's test: the rows' M̌⁻¹ is the body's (scale 1), zero for static and sleeping ones.
-      const bool movesA = c.mass[static_cast<size_t>(f.a)].invMass != 0, movesB = c.mass[static_cast<size_t>(f.b)].invMass != 0;
-      int& la = lastLevel_[static_cast<size_t>(f.a)];
-      int& lb = lastLevel_[static_cast<size_t>(f.b)];
-      const int level = std::max(movesA ? la : 0, movesB ? lb : 0) + 1;
-      if (movesA) la = level;
-      if (movesB) lb = level;
-      levelOf_[k] = level - 1;
-      levels = std::max(levels, level);
+      int prev[2] = {-1, -1};
+      for (int side = 0; side < 2; ++side) {
+        const size_t body = static_cast<size_t>(side ? f.b : f.a);
+        if (c.mass[body].invMass == 0) continue;
+        prev[side] = lastOn_[body];
+        if (prev[side] >= 0) {
+          const size_t p = static_cast<size_t>(prev[side]);
+          after_[2 * p + (cs.frictions[p].b == static_cast<int>(body))] = static_cast<int>(k);  // the slot of p's side
+        }
+        lastOn_[body] = static_cast<int>(k);
+      }
+      waiting_[k] = (prev[0] >= 0) + (prev[1] >= 0 && prev[1] != prev[0]);
     }
-    levelStart_.assign(static_cast<size_t>(levels) + 1, 0);
-    for (size_t k = 0; k < count; ++k) ++levelStart_[static_cast<size_t>(levelOf_[k]) + 1];
-    for (size_t L = 0; L < static_cast<size_t>(levels); ++L) levelStart_[L + 1] += levelStart_[L];
-    levelOrder_.resize(count);
-    next_.assign(levelStart_.begin(), levelStart_.end() - 1);
-    for (size_t k = 0; k < count; ++k) levelOrder_[static_cast<size_t>(next_[static_cast<size_t>(levelOf_[k])]++)] = static_cast<int>(k);
+    chain_.resize(count);
+    for (size_t k = count; k-- > 0;) {
+      int longest = 0;
+      for (size_t slot = 2 * k; slot < 2 * k + 2; ++slot)
+        if (after_[slot] >= 0) longest = std::max(longest, chain_[static_cast<size_t>(after_[slot])]);
+      chain_[k] = longest + 1;
+    }
+    runOrder_.clear();
+    runStart_.assign(1, 0);
+    ready_.clear();
+    for (size_t k = 0; k < count; ++k)
+      if (waiting_[k] == 0) ready_.push_back(static_cast<int>(k));
+    const size_t group = lanes::kLanes;
+    while (!ready_.empty()) {
+      size_t take = ready_.size();
+      if (take > group) {
+        std::sort(ready_.begin(), ready_.end(), [&](int x, int y) {
+          const int cx = chain_[static_cast<size_t>(x)], cy = chain_[static_cast<size_t>(y)];
+          return cx != cy ? cx > cy : x < y;
+        });
+        take = take / group * group;
+      }
+      std::sort(ready_.begin(), ready_.begin() + static_cast<std::ptrdiff_t>(take));
+      waitingNext_.assign(ready_.begin() + static_cast<std::ptrdiff_t>(take), ready_.end());
+      for (size_t i = 0; i < take; ++i) {
+        const size_t k = static_cast<size_t>(ready_[i]);
+        runOrder_.push_back(static_cast<int>(k));
+        const int s0 = after_[2 * k], s1 = after_[2 * k + 1];
+        if (s0 >= 0 && --waiting_[static_cast<size_t>(s0)] == 0) waitingNext_.push_back(s0);
+        if (s1 >= 0 && s1 != s0 && --waiting_[static_cast<size_t>(s1)] == 0) waitingNext_.push_back(s1);
+      }
+      runStart_.push_back(static_cast<int>(runOrder_.size()));
+      ready_.swap(waitingNext_);
+    }
+    assert(runOrder_.size() == count);
   }
 
   // The manifolds eight to a group (soft_lanes.h), in runs whose manifolds share no body that
   // moves, solved run after run: the colours (from the highest down, the overflow last, one to a
-  // group since its manifolds share bodies), or uncoloured the sweep's levels (orderLevels).
+  // group since its manifolds share bodies), or uncoloured the sweep's runs (orderRuns).
   void buildLanes(StepContext& c) {
     const ConstraintSet& cs = *c.constraints;
     const Row* rows = cs.rows.data();
@@ -265,10 +303,10 @@ class SoftStepper final : public Stepper {
       groups += n;
     };
     if (cs.colourStart.empty()) {
-      orderLevels(c);
-      laneOrder_ = levelOrder_.data();
-      for (size_t L = 0; L + 1 < levelStart_.size(); ++L)
-        run(static_cast<size_t>(levelStart_[L]), static_cast<size_t>(levelStart_[L + 1] - levelStart_[L]), false);
+      orderRuns(c);
+      laneOrder_ = runOrder_.data();
+      for (size_t r = 0; r + 1 < runStart_.size(); ++r)
+        run(static_cast<size_t>(runStart_[r]), static_cast<size_t>(runStart_[r + 1] - runStart_[r]), false);
     } else {
       const std::vector<int>& start = cs.colourStart;
       laneOrder_ = cs.colourOrder.data();
@@ -279,6 +317,7 @@ class SoftStepper final : public Stepper {
     }
     const int* order = laneOrder_;
     c.stats.laneRuns = static_cast<int>(segments_.size());
+    c.stats.laneGroups = static_cast<int>(groups);
     groups_.resize(groups);
     const double h = c.h() / c.n();
     const bool ahead = fetchAhead(cs.rows);
@@ -334,7 +373,7 @@ class SoftStepper final : public Stepper {
         }
       }
     };
-    // Every run's groups in one job: a level is a few groups (five on the 100-level pyramid),
+    // Every run's groups in one job: a run is a few groups (three on the 100-level pyramid),
     // less than one block, so a job a run would leave them all to the calling thread.
     pool(c).forRange(groups, 16, [&](size_t b, size_t e, int) {
       auto seg = std::upper_bound(segments_.begin(), segments_.end(), b,
@@ -598,8 +637,9 @@ class SoftStepper final : public Stepper {
   bool lanes_ = false;  // this step's manifolds solved in lanes (buildLanes)
   std::vector<lanes::Group> groups_;
   std::vector<Segment> segments_;
-  const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or levelOrder_
-  std::vector<int> levelOrder_, levelStart_, levelOf_, lastLevel_, next_;  // orderLevels
+  const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or runOrder_
+  std::vector<int> runOrder_, runStart_;                                     // orderRuns
+  std::vector<int> lastOn_, after_, waiting_, chain_, ready_, waitingNext_;  // orderRuns' scratch
   static constexpr size_t kManifoldGrain = 32;  // manifolds of a colour a thread takes at a time
   static constexpr size_t kIslandGrain = 512;   // manifolds of whole islands a thread takes at a time
   Phase phases_[2] = {Phase::Both, Phase::Both};  // a sweep's passes over the manifolds (no allocation a step)

@@ -25,6 +25,7 @@ struct StepStats {
   double residual = 0;     // A1: MLCP residual [m/s]; A2: largest row velocity change in the last sweep
   int rows = 0;
   int laneRuns = 0;        // soft: the runs its manifolds were solved in, eight at a time (0: one at a time)
+  int laneGroups = 0;      // soft: the groups of eight of those runs (a group's lanes not in use cost as much)
 };
 
 // What a stepper works on during one step. The world fills it in s1/s2.
