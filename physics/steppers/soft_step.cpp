@@ -333,7 +333,7 @@ class SoftStepper final : public Stepper {
         if (ahead && at + kAhead < end) prefetchRows(rows, cs.frictions[static_cast<size_t>(order[at + kAhead])]);
         // A lane not in use reads lane 0's bodies and, with zero rows and masses, writes nothing.
         const bool used = l < g.count;
-        const size_t k = static_cast<size_t>(order[seg.order + first + static_cast<size_t>(used ? l : 0)]);
+        const size_t k = static_cast<size_t>(order[used ? at : seg.order + first]);
         const FrictionDef& f = cs.frictions[k];
         g.manifold[l] = static_cast<int>(k);
         g.a[l] = f.a;
