@@ -33,7 +33,13 @@ struct Frame {
   Frame(const Pose& pose) : p(pose.p), R(pose.q.toRotationMatrix()) {}  // NOLINT: implicit on purpose
   Vec3 apply(const Vec3& local) const { return R * local + p; }
   Vec3 rotate(const Vec3& local) const { return R * local; }
-  Vec3 unrotate(const Vec3& world) const { return R.transpose() * world; }
+  // R^T u written out, summed left to right as Eigen's product is (the same numbers): Eigen's SSE2
+  // form stored u's scalars and loaded them back as a pair, a store-forwarding stall that was a
+  // third of formulating a contact point (docs/benchmarks.md).
+  Vec3 unrotate(const Vec3& u) const {
+    return Vec3(R(0, 0) * u.x() + R(1, 0) * u.y() + R(2, 0) * u.z(), R(0, 1) * u.x() + R(1, 1) * u.y() + R(2, 1) * u.z(),
+                R(0, 2) * u.x() + R(1, 2) * u.y() + R(2, 2) * u.z());
+  }
 };
 
 // The report's R_q(a): the unit quaternion of the rotation vector a (axis a/|a|, angle |a|).
@@ -78,11 +84,20 @@ inline Mat3 skew(const Vec3& a) {
 
 // Two unit vectors orthogonal to n and to each other (friction directions).
 inline void tangentBasis(const Vec3& n, Vec3& t1, Vec3& t2) {
+  // Eigen's normalized() of (x, y, z), the same numbers ((x² + y²) + z², then x/|v| ...), from
+  // scalars: built as a Vec3 first, the vector went through memory as two scalar stores and a
+  // pair load, a store-forwarding stall (docs/benchmarks.md).
+  const auto unit = [](double x, double y, double z) {
+    const double s = (x * x + y * y) + z * z;
+    if (!(s > 0)) return Vec3(x, y, z);
+    const double r = std::sqrt(s);
+    return Vec3(x / r, y / r, z / r);
+  };
   // Pick the axis least aligned with n so the cross product is well conditioned.
   if (std::abs(n.x()) < 0.57735) {
-    t1 = Vec3(0, n.z(), -n.y()).normalized();  // n x e_x
+    t1 = unit(0, n.z(), -n.y());  // n x e_x
   } else {
-    t1 = Vec3(n.z(), 0, -n.x()).normalized();  // e_y x n
+    t1 = unit(n.z(), 0, -n.x());  // e_y x n
   }
   t2 = n.cross(t1);
 }

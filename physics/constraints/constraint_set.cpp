@@ -122,7 +122,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       const Frame& A = frames_[static_cast<size_t>(m.a)];
       const Frame& B = frames_[static_cast<size_t>(m.b)];
       Row* r = rows.data() + manifoldRow_[mk];
-      for (int k = 0; k < m.count + 3; ++k) resetRow(r[k]);
+      for (int k = 0; k < m.count + 3; ++k) resetRowState(r[k]);  // the rest: formulated and finished below
       FrictionDef f;
       f.a = m.a;
       f.b = m.b;

@@ -45,7 +45,17 @@ struct Row {
   double lambda = 0;                                   // accumulated impulse [N s or N m s]
 };
 
-// r = Row{}, field by field (no zero-filled temporary). A new field must be reset here too.
+// Row{}'s values of the fields a contact's formulation (formulateContact, formulateFriction, then
+// finishRow) does not write: all a manifold's rows need reset when formulated over last step's.
+inline void resetRowState(Row& r) {
+  r.normalRow = -1;
+  r.normalCount = 0;
+  r.velocityLevel = r.velocityTarget = r.speculative = r.pushed = false;
+  r.split = 0;
+  r.lambda = 0;
+}
+// r = Row{}, field by field (no zero-filled temporary). A new field must be reset here too, and in
+// resetRowState unless every formulation writes it.
 static_assert(sizeof(Row) == 208, "a field was added to Row: reset it in resetRow");
 inline void resetRow(Row& r) {
   r.a = r.b = 0;
@@ -59,11 +69,7 @@ inline void resetRow(Row& r) {
   r.bias = 0;
   r.lo = -kInfinity;
   r.hi = kInfinity;
-  r.normalRow = -1;
-  r.normalCount = 0;
-  r.velocityLevel = r.velocityTarget = r.speculative = r.pushed = false;
-  r.split = 0;
-  r.lambda = 0;
+  resetRowState(r);
 }
 
 // Rows solved together: the report's "block constraint x" of proc3:10. A single row with its
