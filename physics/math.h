@@ -84,9 +84,9 @@ inline Mat3 skew(const Vec3& a) {
 
 // Two unit vectors orthogonal to n and to each other (friction directions).
 inline void tangentBasis(const Vec3& n, Vec3& t1, Vec3& t2) {
-  // Eigen's normalized() of (x, y, z), the same numbers ((x² + y²) + z², then x/|v| ...), from
-  // scalars: built as a Vec3 first, the vector went through memory as two scalar stores and a
-  // pair load, a store-forwarding stall (docs/benchmarks.md).
+  // Eigen's normalized() of (x, y, z) written out, the same numbers ((x² + y²) + z², then x/|v|
+  // ...): a Vec3 built from scalars and then normalised went through memory as two scalar stores
+  // and a pair load, a store-forwarding stall (docs/benchmarks.md).
   const auto unit = [](double x, double y, double z) {
     const double s = (x * x + y * y) + z * z;
     if (!(s > 0)) return Vec3(x, y, z);

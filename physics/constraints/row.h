@@ -45,8 +45,8 @@ struct Row {
   double lambda = 0;                                   // accumulated impulse [N s or N m s]
 };
 
-// Row{}'s values of the fields a contact's formulation (formulateContact, formulateFriction, then
-// finishRow) does not write: all a manifold's rows need reset when formulated over last step's.
+// Row{}'s values of the fields a contact's formulation (formulateContact or formulateFriction, then
+// finishRow) does not write: all that build() resets of a row it formulates over last step's.
 inline void resetRowState(Row& r) {
   r.normalRow = -1;
   r.normalCount = 0;
