@@ -166,14 +166,14 @@ bool World::geometry() {
   // examined when its bodies can meet, and speculative points cover the gap they can close.
   const double h = settings_.dt;
   const Vec3 fall = settings_.speculative ? Vec3(h * h * model_.gravity) : Vec3::Zero();
-  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+  eachBody([&](size_t i) {
     const Body& b = model_.bodies[i];
     const BodyState& s = state_.bodies[i];
     const bool moves = !b.isStatic && settings_.speculative;
     reach_[i] = 0.5 * kContactMargin + (moves ? h * s.w.norm() * b.shape.boundingRadius() : 0.0);
     move_[i] = moves ? Vec3(h * s.v) : Vec3::Zero();
-  }
-  broadphase_.update(state_, reach_, move_, fall);
+  });
+  broadphase_.update(state_, reach_, move_, fall, *pool_);
   const size_t cap = std::max<size_t>(limits::kMinPairCap, limits::kMaxPairsPerBody * model_.bodies.size());
   if (!broadphase_.findPairs(pairs_, cap, *pool_)) {
     report_.finite = false;
@@ -294,11 +294,11 @@ const std::vector<Manifold>& World::solvedManifolds() {
 }
 
 void World::formulate() {
-  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+  eachBody([&](size_t i) {
     ctx_.poses[i] = state_.bodies[i].pose();
     ctx_.v[i] = state_.bodies[i].v;
     ctx_.w[i] = state_.bodies[i].w;
-  }
+  });
   const double hSub = settings_.dt / settings_.substeps;
   const double applyScale = settings_.algorithm == Algorithm::A5 ? settings_.kappa : 1.0;
   constraints_.build(model_, solvedManifolds(), ctx_.poses, ctx_.mass, settings_, hSub, applyScale);
@@ -307,29 +307,42 @@ void World::formulate() {
   // 1 m rebounds to 0.92 e² of its height under A1/A2 at h = 1/60 this way (0.85 with the start's),
   // 0.97 under A3-A5 and soft (tests/test_contacts.cpp).
   const Vec3 gh = settings_.dt * model_.gravity;
-  for (size_t i = 0; i < state_.bodies.size(); ++i) approachV_[i] = ctx_.mass[i].invMass > 0 ? Vec3(ctx_.v[i] + gh) : ctx_.v[i];
+  eachBody([&](size_t i) { approachV_[i] = ctx_.mass[i].invMass > 0 ? Vec3(ctx_.v[i] + gh) : ctx_.v[i]; });
   constraints_.recordApproach(approachV_.data(), ctx_.w.data());
 }
 
 bool World::diverged() {
-  for (size_t i = 0; i < state_.bodies.size(); ++i) {
+  // What is wrong with body i's state (null: nothing), and the value that is.
+  const auto check = [&](size_t i, double& value) -> const char* {
     const BodyState& b = state_.bodies[i];
-    const char* what = nullptr;
-    double value = 0;
+    value = 0;
     if (!allFinite(b.x) || !allFinite(b.v) || !allFinite(b.w) || !std::isfinite(b.q.w()) || !allFinite(b.q.vec()))
-      what = "a non-finite coordinate or velocity";
-    else if ((value = b.x.norm()) > kMaxCoordinate)
-      what = "a position beyond 1e6 m";
-    else if ((value = std::max(b.v.norm(), b.w.norm())) > kMaxSpeed)
-      what = "a speed beyond 1e6 m/s or rad/s";
-    if (what) {
-      report_.finite = false;
-      report_.problem = "body \"" + model_.bodies[i].name + "\" has " + what;
-      if (value > 0) report_.problem += " (" + std::to_string(value) + ")";
-      return true;
-    }
-  }
-  return false;
+      return "a non-finite coordinate or velocity";
+    if ((value = b.x.norm()) > kMaxCoordinate) return "a position beyond 1e6 m";
+    if ((value = std::max(b.v.norm(), b.w.norm())) > kMaxSpeed) return "a speed beyond 1e6 m/s or rad/s";
+    return nullptr;
+  };
+  // The first such body, whatever the threads: each block's first, then the lowest of those.
+  const size_t nb = state_.bodies.size();
+  const size_t blocks = (nb + kBodyGrain - 1) / kBodyGrain;
+  firstBad_.assign(blocks, nb);
+  pool_->forBlocks(blocks, [&](size_t blk, int) {
+    double value;
+    for (size_t i = blk * kBodyGrain, e = std::min(nb, (blk + 1) * kBodyGrain); i < e; ++i)
+      if (check(i, value)) {
+        firstBad_[blk] = i;
+        return;
+      }
+  });
+  if (blocks == 0) return false;
+  const size_t i = *std::min_element(firstBad_.begin(), firstBad_.end());
+  if (i == nb) return false;
+  double value;
+  const char* what = check(i, value);
+  report_.finite = false;
+  report_.problem = "body \"" + model_.bodies[i].name + "\" has " + what;
+  if (value > 0) report_.problem += " (" + std::to_string(value) + ")";
+  return true;
 }
 
 const StepReport& World::step() {

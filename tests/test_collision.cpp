@@ -10,6 +10,7 @@
 #include <fcl/narrowphase/distance.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 using namespace substep;
@@ -356,6 +357,77 @@ TEST(Broadphase, QueriesOnThreadsFindEveryPairInOrderOnce) {
     std::vector<std::pair<int, int>> pairs;
     ASSERT_TRUE(bp.findPairs(pairs, 100000, *pool));
     EXPECT_EQ(pairs, expected) << pool->threads() << " threads";
+  }
+}
+
+// The bodies' boxes, the candidates' reach test and the planes' bodies on a pool's threads, per
+// block, taken in block order: with a plane first in the body list and one last (its pairs fall
+// among the boxes' in the sorted order, so they are merged in, not appended), the pairs are every
+// overlapping pair and every box reaching below a plane, in order, once, on one thread and on three
+// alike; and past maxPairs both stop with the pairs the serial loop had found: the candidates' in
+// order, then each plane's by body.
+TEST(Broadphase, BoxesAndPlanesOnThreadsGiveThePairsInOrder) {
+  Model m;
+  auto plane = [&](const Vec3& n, double offset) {
+    Body b;
+    b.name = "plane" + std::to_string(m.bodies.size());
+    b.isStatic = true;
+    b.shape.type = ShapeType::Plane;
+    b.shape.normal = n;
+    b.shape.offset = offset;
+    m.bodies.push_back(b);
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> at(0.0, 12.0);
+  State s;
+  plane(Vec3::UnitY(), 0.0);  // body 0: the ground, y = 0
+  s.bodies.emplace_back();
+  const int boxes = 5000, first = 1;
+  for (int i = 0; i < boxes; ++i) {
+    Body b;
+    b.name = "b" + std::to_string(i);
+    b.shape = box(0.5, 0.5, 0.5);
+    m.bodies.push_back(b);
+    BodyState bs;
+    bs.x = Vec3(at(rng), at(rng), at(rng)) * 2.0;
+    s.bodies.push_back(bs);
+  }
+  plane(Vec3::UnitX(), 1.0);  // the last body: a wall, x = 1
+  s.bodies.emplace_back();
+  const int wall = first + boxes;
+  std::vector<std::pair<int, int>> boxPairs, groundPairs, wallPairs;
+  for (int i = first; i < wall; ++i) {
+    const Vec3& xi = s.bodies[static_cast<size_t>(i)].x;
+    for (int j = i + 1; j < wall; ++j)
+      if (((xi - s.bodies[static_cast<size_t>(j)].x).cwiseAbs().array() <= 1.0).all()) boxPairs.emplace_back(i, j);
+    if (xi.y() - 0.5 <= 0.0) groundPairs.emplace_back(0, i);
+    if (xi.x() - 0.5 <= 1.0) wallPairs.emplace_back(i, wall);
+  }
+  ASSERT_GT(boxPairs.size(), 4096u);  // more than one block of candidates
+  ASSERT_GT(groundPairs.size(), 10u);
+  ASSERT_GT(wallPairs.size(), 10u);
+  std::vector<std::pair<int, int>> expected = boxPairs;
+  expected.insert(expected.end(), groundPairs.begin(), groundPairs.end());
+  expected.insert(expected.end(), wallPairs.begin(), wallPairs.end());
+  std::vector<std::pair<int, int>> sorted = expected;
+  std::sort(sorted.begin(), sorted.end());
+  ASSERT_NE(sorted, expected);  // the wall's pairs do fall among the boxes'
+  const std::vector<double> still(m.bodies.size(), 0.0);
+  const std::vector<Vec3> move(m.bodies.size(), Vec3::Zero());
+  WorkerPool three(3);
+  for (WorkerPool* pool : {&WorkerPool::callerOnly(), &three}) {
+    Broadphase bp(m);
+    bp.update(s, still, move, Vec3::Zero(), *pool);
+    ASSERT_EQ(bp.movedLastUpdate(), boxes);
+    std::vector<std::pair<int, int>> pairs;
+    ASSERT_TRUE(bp.findPairs(pairs, 1000000, *pool));
+    EXPECT_EQ(pairs, sorted) << pool->threads() << " threads";
+    // Past the cap among the candidates, and among the wall's pairs: the first cap + 1 found.
+    for (const size_t cap : {size_t{5000}, expected.size() - 5}) {
+      const std::vector<std::pair<int, int>> found(expected.begin(), expected.begin() + static_cast<long>(cap) + 1);
+      EXPECT_FALSE(bp.findPairs(pairs, cap, *pool));
+      EXPECT_EQ(pairs, found) << pool->threads() << " threads, cap " << cap;
+    }
   }
 }
 

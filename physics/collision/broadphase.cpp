@@ -98,7 +98,7 @@ bool Broadphase::admitted(int i, int j) const {
 }
 
 void Broadphase::update(const State& state, const std::vector<double>& reach, const std::vector<Vec3>& move,
-                        const Vec3& fall) {
+                        const Vec3& fall, WorkerPool& pool) {
   movedList_.clear();
   if (!registered_) {
     planes_.clear();
@@ -110,8 +110,9 @@ void Broadphase::update(const State& state, const std::vector<double>& reach, co
       planes_.push_back({static_cast<int>(i), n, s.offset + n.dot(pose.p)});
     }
   }
-  for (size_t i = 0; i < objects_.size(); ++i) {
-    if (!objects_[i] || (registered_ && model_.bodies[i].isStatic)) continue;
+  // Whether body i's fat box changed; writes only body i's object and boxes.
+  const auto place = [&](size_t i) {
+    if (!objects_[i] || (registered_ && model_.bodies[i].isStatic)) return false;
     auto& o = static_cast<FatObject&>(*objects_[i]);
     o.setTransform(transformOf(state.bodies[i], shapes_[i].offset));
     Box& r = reachBox_[i];
@@ -125,13 +126,19 @@ void Broadphase::update(const State& state, const std::vector<double>& reach, co
     }
     if (registered_ && fat_[i].contains(r)) {
       o.setBox(fat_[i].lo, fat_[i].hi);  // unchanged in the tree
-      continue;
+      return false;
     }
     const double m = model_.bodies[i].isStatic ? 0.0 : fatMargin(model_.bodies[i].shape);
     fat_[i] = Box{r.lo - Vec3::Constant(m), r.hi + Vec3::Constant(m)};
     o.setBox(fat_[i].lo, fat_[i].hi);
-    movedList_.push_back(static_cast<int>(i));
-  }
+    return true;
+  };
+  movedNow_.resize(objects_.size());
+  pool.forRange(objects_.size(), 1024, [&](size_t first, size_t last, int) {
+    for (size_t i = first; i < last; ++i) movedNow_[i] = place(i);
+  });
+  for (size_t i = 0; i < objects_.size(); ++i)
+    if (movedNow_[i]) movedList_.push_back(static_cast<int>(i));
   moved_ = static_cast<int>(movedList_.size());
   if (!registered_) {
     std::vector<fcl::CollisionObjectd*> all;
@@ -198,27 +205,63 @@ bool Broadphase::findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPa
     candidates_.swap(merged_);
     movedList_.clear();
   }
-  for (const auto& pr : candidates_)
-    if (reachBox_[static_cast<size_t>(pr.first)].overlaps(reachBox_[static_cast<size_t>(pr.second)])) {
-      pairs.push_back(pr);
-      if (pairs.size() > maxPairs) return false;
+  // Each block's pairs into its own list on the threads, the lists taken in block order: the
+  // pairs (and, past maxPairs, those found so far) are the serial loop's. `into` gets the lists of
+  // `blocks` blocks; false once it holds more than `cap` beyond `base` pairs.
+  const auto gather = [&](size_t blocks, std::vector<std::pair<int, int>>& into, size_t base, size_t cap) {
+    for (size_t b = 0; b < blocks; ++b) {
+      const std::vector<std::pair<int, int>>& kept = blockFound_[b];
+      if (base + into.size() + kept.size() > cap) {
+        into.insert(into.end(), kept.begin(), kept.begin() + static_cast<long>(cap + 1 - base - into.size()));
+        return false;
+      }
+      into.insert(into.end(), kept.begin(), kept.end());
     }
-  // A body meets a plane when the lowest corner of its reach box is below the surface.
-  bool planesAdded = false;
+    return true;
+  };
+  // The candidates whose reach boxes overlap.
+  constexpr size_t kTestGrain = 4096;
+  const size_t nc = candidates_.size();
+  size_t blocks = (nc + kTestGrain - 1) / kTestGrain;
+  if (blockFound_.size() < blocks) blockFound_.resize(blocks);
+  pool.forBlocks(blocks, [&](size_t b, int) {
+    std::vector<std::pair<int, int>>& kept = blockFound_[b];
+    kept.clear();
+    for (size_t k = b * kTestGrain, e = std::min(nc, (b + 1) * kTestGrain); k < e; ++k)
+      if (reachBox_[static_cast<size_t>(candidates_[k].first)].overlaps(reachBox_[static_cast<size_t>(candidates_[k].second)]))
+        kept.push_back(candidates_[k]);
+  });
+  if (!gather(blocks, pairs, 0, maxPairs)) return false;
+  // A body meets a plane when the lowest corner of its reach box is below the surface. Each
+  // plane's pairs come in increasing order (i ascending, the plane on one side of all of them), and
+  // no candidate holds a plane (planes are not in the tree): merged into the candidates' order.
+  const size_t nb = objects_.size();
+  planePairs_.clear();
   for (const Plane& p : planes_) {
-    for (size_t i = 0; i < objects_.size(); ++i) {
-      if (!objects_[i] || model_.bodies[i].isStatic) continue;
-      const Box& b = reachBox_[i];
-      const Vec3 centre = 0.5 * (b.lo + b.hi), half = 0.5 * (b.hi - b.lo);
-      if (p.n.dot(centre) - half.dot(p.n.cwiseAbs()) > p.offset) continue;
-      const int a = std::min(static_cast<int>(i), p.body), c = std::max(static_cast<int>(i), p.body);
-      if (!admitted(a, c)) continue;
-      pairs.emplace_back(a, c);
-      planesAdded = true;
-      if (pairs.size() > maxPairs) return false;
+    blocks = (nb + kTestGrain - 1) / kTestGrain;
+    if (blockFound_.size() < blocks) blockFound_.resize(blocks);
+    pool.forBlocks(blocks, [&](size_t b, int) {
+      std::vector<std::pair<int, int>>& kept = blockFound_[b];
+      kept.clear();
+      for (size_t i = b * kTestGrain, e = std::min(nb, (b + 1) * kTestGrain); i < e; ++i) {
+        if (!objects_[i] || model_.bodies[i].isStatic) continue;
+        const Box& box = reachBox_[i];
+        const Vec3 centre = 0.5 * (box.lo + box.hi), half = 0.5 * (box.hi - box.lo);
+        if (p.n.dot(centre) - half.dot(p.n.cwiseAbs()) > p.offset) continue;
+        const int a = std::min(static_cast<int>(i), p.body), c = std::max(static_cast<int>(i), p.body);
+        if (admitted(a, c)) kept.emplace_back(a, c);
+      }
+    });
+    if (!gather(blocks, planePairs_, pairs.size(), maxPairs)) {
+      pairs.insert(pairs.end(), planePairs_.begin(), planePairs_.end());
+      return false;
     }
   }
-  if (planesAdded) std::sort(pairs.begin(), pairs.end());
+  if (planePairs_.empty()) return true;
+  if (planes_.size() > 1) std::sort(planePairs_.begin(), planePairs_.end());
+  merged_.clear();
+  std::merge(pairs.begin(), pairs.end(), planePairs_.begin(), planePairs_.end(), std::back_inserter(merged_));
+  pairs.swap(merged_);
   return true;
 }
 

@@ -36,8 +36,10 @@ class Broadphase {
   ~Broadphase();
   // Moves every dynamic body's box to its state, grown by reach[i] on every side and swept by
   // the box of {0, move[i], move[i] + fall} (move: h v, fall: the step's h² g), and refits the tree
-  // where a box left its fat box. Static bodies are not swept.
-  void update(const State& state, const std::vector<double>& reach, const std::vector<Vec3>& move, const Vec3& fall);
+  // where a box left its fat box. Static bodies are not swept. The bodies' boxes are found on
+  // `pool` in blocks (each writes only its bodies'); the tree is refitted on the calling thread.
+  void update(const State& state, const std::vector<double>& reach, const std::vector<Vec3>& move, const Vec3& fall,
+              WorkerPool& pool = WorkerPool::callerOnly());
   // Pairs (i < j by body index) whose reach boxes overlap, in increasing order: the order is the
   // solve order downstream, so it does not depend on the tree. Returns false, with the pairs found
   // so far, when there are more than maxPairs (bodies started inside each other).
@@ -64,6 +66,7 @@ class Broadphase {
   std::vector<Box> reachBox_;            // this step's, per body
   std::vector<Box> fat_;                 // per body: the box the tree holds
   std::vector<int> movedList_;           // bodies whose fat box changed in the last update
+  std::vector<char> movedNow_;           // update(): per body, whether its fat box changed
   int moved_ = 0;
   bool registered_ = false;
   struct Plane {
@@ -76,9 +79,10 @@ class Broadphase {
   std::vector<std::pair<int, int>> excluded_;    // sorted joint pairs that do not collide
   std::vector<std::pair<int, int>> candidates_;  // sorted pairs whose fat boxes overlap
   // Scratch, kept so that a settled step allocates nothing: new candidates of moved bodies (per
-  // block of them, then all), the merged list, the moved bodies' tree objects.
+  // block of them, then all), then per block the candidates and plane pairs kept; the merged
+  // list, the planes' pairs, the moved bodies' tree objects.
   std::vector<std::vector<std::pair<int, int>>> blockFound_;
-  std::vector<std::pair<int, int>> found_, merged_, mergeBuffer_;
+  std::vector<std::pair<int, int>> found_, merged_, mergeBuffer_, planePairs_;
   std::vector<size_t> runs_, nextRuns_;
   std::vector<fcl::CollisionObjectd*> movedObjects_;
 };

@@ -109,17 +109,25 @@ class SoftStepper final : public Stepper {
     prepareSweeps(c);
     const Pass solve{true, h, st.pushOut}, relax{false, h, st.pushOut};
 
+    // Warm and held (no joints), the warm start's per-body part goes with v += h g, per body on
+    // the threads; else row by row (startImpulses).
+    const bool perBody = st.warmStart && c.rowsHeld;
     for (int j = 0; j < n; ++j) {
-      addExternal(c, h);
-      startImpulses(c, j);
+      eachBodyBlock(c, [&](size_t first, size_t last) {
+        addExternal(c, h, first, last);
+        if (perBody) startSubStepImpulses(c, j, bodyPart(first, last));
+      });
+      startImpulses(c, j, perBody);
       // The step reports the residual of its last solve sweep; the others do not measure it.
       for (int i = 0; i < m && !cs.rows.empty(); ++i) {
         if (j + 1 == n && i + 1 == m) c.stats.residual = softSweep<true>(c, solve);
         else softSweep<false>(c, solve);
       }
-      // Coordinates to the sub-step's end with the solved (biased) velocities.
-      pool(c).forRange(nb, 512, [&](size_t first, size_t last, int) {
+      // Coordinates to the sub-step's end with the solved (biased) velocities, which are the
+      // sub-step's record.
+      eachBodyBlock(c, [&](size_t first, size_t last) {
         for (size_t i = first; i < last; ++i) {
+          recordSubStep(c, j, i);
           if (c.model->bodies[i].isStatic) continue;
           dpV_[i] += h * c.v[i];
           dpW_[i] += h * c.w[i];
@@ -127,13 +135,12 @@ class SoftStepper final : public Stepper {
           c.subPoses[i].q = (c.subPoses[i].q * Rq(h * c.w[i])).normalized();
         }
       });
-      recordSubStep(c, j);
       if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Reformulation::JointRows, 1.0);
       for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep<false>(c, relax);
       // Back to the rows, where the next sub-step's warm start (with joints, J̌ re-formulated)
       // and after the step restitution, the forces and the next step read them.
       if (lanes_ && (j + 1 == n || !c.rowsHeld || !st.warmStart)) lanesToRows(c);
-      endSubStepImpulses(c);
+      if (perBody) eachBodyBlock(c, [&](size_t first, size_t last) { endSubStepImpulses(c, bodyPart(first, last)); });
     }
     c.stats.iterations = 2 * n * m;
     applyRestitution(c, c.v.data(), c.w.data(), 1.0);
@@ -141,14 +148,16 @@ class SoftStepper final : public Stepper {
 
   // s4: the sub-steps moved the coordinates already; the velocity is the relaxed one.
   void stepCoordinates(StepContext& c) override {
-    for (size_t i = 0; i < c.bodies(); ++i) {
-      if (c.model->bodies[i].isStatic) continue;
-      BodyState& b = c.state->bodies[i];
-      b.x = c.subPoses[i].p;
-      b.q = c.subPoses[i].q;
-      b.v = endVelocity(c, i, c.v[i]);
-      b.w = endAngularVelocity(c, i, c.w[i]);
-    }
+    eachBodyBlock(c, [&](size_t first, size_t last) {
+      for (size_t i = first; i < last; ++i) {
+        if (c.model->bodies[i].isStatic) continue;
+        BodyState& b = c.state->bodies[i];
+        b.x = c.subPoses[i].p;
+        b.q = c.subPoses[i].q;
+        b.v = endVelocity(c, i, c.v[i]);
+        b.w = endAngularVelocity(c, i, c.w[i]);
+      }
+    });
   }
 
  private:
@@ -267,11 +276,13 @@ class SoftStepper final : public Stepper {
     while (!ready_.empty()) {
       size_t take = ready_.size();
       if (take > group) {
-        std::sort(ready_.begin(), ready_.end(), [&](int x, int y) {
+        // The first `take` by (longest chain, then the step's order): a selection, not a sort,
+        // since the keys are distinct and what is left over is ordered again next run.
+        take = take / group * group;
+        std::nth_element(ready_.begin(), ready_.begin() + static_cast<std::ptrdiff_t>(take), ready_.end(), [&](int x, int y) {
           const int cx = chain_[static_cast<size_t>(x)], cy = chain_[static_cast<size_t>(y)];
           return cx != cy ? cx > cy : x < y;
         });
-        take = take / group * group;
       }
       std::sort(ready_.begin(), ready_.begin() + static_cast<std::ptrdiff_t>(take));
       waitingNext_.assign(ready_.begin() + static_cast<std::ptrdiff_t>(take), ready_.end());
@@ -476,6 +487,15 @@ class SoftStepper final : public Stepper {
 
   // The step's threads; a context built without them (by hand, in a test) steps on one.
   static WorkerPool& pool(StepContext& c) { return c.pool ? *c.pool : WorkerPool::callerOnly(); }
+  // f(first, last) over the bodies in blocks on the threads, for work that writes only each
+  // body's own entries.
+  template <class F>
+  static void eachBodyBlock(StepContext& c, F f) {
+    pool(c).forRange(c.bodies(), 1024, [&](size_t first, size_t last, int) { f(first, last); });
+  }
+  static ConstraintPart bodyPart(size_t first, size_t last) {
+    return ConstraintPart{{}, {}, IndexRange{nullptr, static_cast<int>(first), static_cast<int>(last - first)}, {}};
+  }
 
   // f(manifold index, change) for every manifold, colour by colour, each colour's on the threads;
   // change: where f keeps the largest velocity change it made, the thread's share of change_.
@@ -536,18 +556,20 @@ class SoftStepper final : public Stepper {
 
   // Warm start: sub-step 0 applies last step's λ on this step's J̌ (joints' rows, then each
   // manifold's, colour by colour); later sub-steps as startSubStepImpulses does.
-  void startImpulses(StepContext& c, int j) {
+  // The warm start of sub-step j; perBody: its per-body part is done (startSubStepImpulses of
+  // every body: warm with J̌ held, the velocities at the start kept and for j > 0 the last
+  // sub-step's change added), the rows' is left.
+  void startImpulses(StepContext& c, int j, bool perBody) {
     ConstraintSet& cs = *c.constraints;
     const bool warm = c.settings->warmStart;
     if (j > 0 || !warm || !c.rowsHeld) {
-      startSubStepImpulses(c, j);
+      if (!perBody) startSubStepImpulses(c, j);
       // The lanes hold the contacts' λ from here to the sub-step's end (buildLanes took the
       // step's first): cold, the rows' were zeroed.
       if (lanes_ && j > 0 && !warm) lanesFromRows(c);
       return;
     }
-    std::copy(c.v.begin(), c.v.end(), c.startV.begin());
-    std::copy(c.w.begin(), c.w.end(), c.startW.begin());
+    // j = 0, warm, held: last step's λ on this step's J̌, row by row (the joints' none, as held).
     applyRowImpulses(cs, IndexRange{nullptr, 0, cs.contactFirstRow}, c.v, c.w);
     if (lanes_) {
       const lanes::Kernel& k = lanes::kernel();

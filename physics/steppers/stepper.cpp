@@ -7,10 +7,12 @@
 
 namespace substep {
 
-void addExternal(StepContext& c, double dt) {
+void addExternal(StepContext& c, double dt) { addExternal(c, dt, 0, c.bodies()); }
+
+void addExternal(StepContext& c, double dt, size_t firstBody, size_t lastBody) {
   const Vec3 dv = dt * c.model->gravity;
   const Gyroscopic gyro = c.settings->gyroscopic;
-  for (size_t i = 0; i < c.bodies(); ++i) {
+  for (size_t i = firstBody; i < lastBody; ++i) {
     if (c.mass[i].invMass == 0) continue;
     c.v[i] += dv;
     if (gyro != Gyroscopic::None) c.w[i] += gyroscopicChange(c.w[i], c.model->bodies[i].inertia, dt, gyro);

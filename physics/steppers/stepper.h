@@ -108,6 +108,7 @@ class ScopedA3Approximations {
 // Adds ext, the velocity the external forces give in time dt, to every dynamic body: gravity, and
 // the gyroscopic term if the settings ask for it (the report's ext has none).
 void addExternal(StepContext& c, double dt);
+void addExternal(StepContext& c, double dt, size_t firstBody, size_t lastBody);  // bodies [first, last)
 // The change of a body-frame angular velocity w over dt from ω × Iω alone (I the principal moments).
 Vec3 gyroscopicChange(const Vec3& w, const Vec3& I, double dt, Gyroscopic mode);
 
@@ -216,8 +217,12 @@ void stepCoordinatesEssential(StepContext& c);
 // s4 for A3-A5 (proc3:18-19, proc4:19-20): tq' = tq + Σ h/n tv̌^k and the rotation by `rule`.
 void stepCoordinatesSubStepped(StepContext& c, RotationRule rule);
 
-// Records the solver velocities as sub-step j's (0-based).
+// Records the solver velocities as sub-step j's (0-based): every body's, or body i's.
 void recordSubStep(StepContext& c, int j);
+inline void recordSubStep(StepContext& c, int j, size_t i) {
+  c.subV[static_cast<size_t>(j) * c.bodies() + i] = c.v[i];
+  c.subW[static_cast<size_t>(j) * c.bodies() + i] = c.w[i];
+}
 
 // --- sub-stepping (A3-A5) ---------------------------------------------------------------------
 
