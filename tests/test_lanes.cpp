@@ -71,6 +71,40 @@ TEST(Lanes, SameTrajectoryAsOneManifoldAtATime) {
   }
 }
 
+// A step whose manifolds are last step's (the same bodies in the same order) keeps last step's
+// runs; any other makes its own. Spheres thrown at one another between walls keep making and
+// breaking contacts, often as many as the step before but between other bodies: the lanes give
+// the numbers of one manifold at a time on every step, warm and cold.
+TEST(Lanes, RunsAreKeptOnlyForTheSameManifolds) {
+  std::string json = R"({"bodies": [{"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [4, 0.5, 4]},
+      "position": [0, -0.5, 0]})";
+  for (int wall = 0; wall < 4; ++wall) {
+    const double x = wall == 0 ? -4.5 : wall == 1 ? 4.5 : 0, z = wall == 2 ? -4.5 : wall == 3 ? 4.5 : 0;
+    const bool alongZ = wall < 2;
+    json += R"(, {"name": "wall)" + std::to_string(wall) + R"(", "static": true, "shape": {"type": "box", "half_extents": [)" +
+            (alongZ ? "0.5, 3, 5" : "5, 3, 0.5") + R"(]}, "position": [)" + std::to_string(x) + ", 3, " + std::to_string(z) + "]}";
+  }
+  int n = 0;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j)
+      for (int k = 0; k < 3; ++k, ++n) {
+        const double vx = ((n * 7) % 5 - 2) * 1.5, vz = ((n * 3) % 5 - 2) * 1.5;
+        json += R"(, {"name": "s)" + std::to_string(n) + R"(", "shape": {"type": "sphere", "radius": 0.4}, "position": [)" +
+                std::to_string(-3 + 1.2 * i) + ", " + std::to_string(0.5 + 1.0 * k) + ", " + std::to_string(-3 + 1.2 * j) +
+                R"(], "velocity": [)" + std::to_string(vx) + ", 0, " + std::to_string(vz) + "]}";
+      }
+  json += "]}";
+  const Scene s = parseScene(json, "<test>", ".");
+  for (bool warm : {true, false}) {
+    const Stepped one = trajectory(s, soft(s, false, false, warm), 240);
+    const Stepped eight = trajectory(s, soft(s, true, false, warm), 240);
+    ASSERT_GT(eight.laneRuns, 0);
+    ASSERT_EQ(one.hashes.size(), eight.hashes.size());
+    for (size_t k = 0; k < one.hashes.size(); ++k)
+      ASSERT_EQ(one.hashes[k], eight.hashes[k]) << (warm ? "warm" : "cold") << ", step " << k + 1;
+  }
+}
+
 // Runs: the pyramid's are about twice its width (its rows' manifolds in a diagonal wavefront),
 // not one a manifold (a chain) nor one for all (which would solve neighbours at once); and they
 // fill the lanes: the groups are at most a fifth more than the larger of the runs (each at least

@@ -239,6 +239,20 @@ class SoftStepper final : public Stepper {
   void orderRuns(StepContext& c) {
     const ConstraintSet& cs = *c.constraints;
     const size_t count = cs.frictions.size();
+    // The runs follow from the manifolds' bodies in the step's order and which of those move
+    // (storeMoving's test): a step with the same list as the last (a settled scene, whose pairs
+    // stay) keeps last step's runs.
+    runKey_.resize(count);
+    for (size_t k = 0; k < count; ++k) {
+      const FrictionDef& f = cs.frictions[k];
+      const auto side = [&](int body) {  // the body, or its complement when it does not move
+        return static_cast<uint32_t>(c.mass[static_cast<size_t>(body)].invMass == 0 ? ~body : body);
+      };
+      runKey_[k] = uint64_t{side(f.a)} << 32 | side(f.b);
+    }
+    if (runsKept_ && runKey_ == lastRunKey_) return;
+    runKey_.swap(lastRunKey_);
+    runsKept_ = true;
     // Each manifold's successors (the next on each of its moving bodies), how many predecessors
     // it waits for, and the longest chain from it to the sweep's end.
     lastOn_.assign(c.bodies(), -1);
@@ -661,6 +675,8 @@ class SoftStepper final : public Stepper {
   std::vector<Segment> segments_;
   const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or runOrder_
   std::vector<int> runOrder_, runStart_;                                     // orderRuns
+  std::vector<uint64_t> runKey_, lastRunKey_;  // orderRuns: each manifold's bodies, this step's and the runs'
+  bool runsKept_ = false;                      // runOrder_ and runStart_ are lastRunKey_'s
   std::vector<int> lastOn_, after_, waiting_, chain_, ready_, waitingNext_;  // orderRuns' scratch
   static constexpr size_t kManifoldGrain = 32;  // manifolds of a colour a thread takes at a time
   static constexpr size_t kIslandGrain = 512;   // manifolds of whole islands a thread takes at a time
