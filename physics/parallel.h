@@ -20,6 +20,11 @@
 
 namespace substep {
 
+// Bodies a block takes in per-body work on a step's threads (each block writes only its bodies'
+// entries): enough that handing a block out costs little beside it, few enough that 3000 bodies
+// give both threads work.
+constexpr size_t kBodyBlock = 1024;
+
 class WorkerPool {
  public:
   // threads >= 1; 1 runs everything on the caller. Holds at most twice the machine's cores, and

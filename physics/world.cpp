@@ -324,18 +324,16 @@ bool World::diverged() {
   };
   // The first such body, whatever the threads: each block's first, then the lowest of those.
   const size_t nb = state_.bodies.size();
-  const size_t blocks = (nb + kBodyGrain - 1) / kBodyGrain;
-  firstBad_.assign(blocks, nb);
-  pool_->forBlocks(blocks, [&](size_t blk, int) {
+  firstBad_.assign((nb + kBodyBlock - 1) / kBodyBlock, nb);
+  pool_->forRange(nb, kBodyBlock, [&](size_t first, size_t last, int) {
     double value;
-    for (size_t i = blk * kBodyGrain, e = std::min(nb, (blk + 1) * kBodyGrain); i < e; ++i)
+    for (size_t i = first; i < last; ++i)
       if (check(i, value)) {
-        firstBad_[blk] = i;
+        firstBad_[first / kBodyBlock] = i;
         return;
       }
   });
-  if (blocks == 0) return false;
-  const size_t i = *std::min_element(firstBad_.begin(), firstBad_.end());
+  const size_t i = firstBad_.empty() ? nb : *std::min_element(firstBad_.begin(), firstBad_.end());
   if (i == nb) return false;
   double value;
   const char* what = check(i, value);

@@ -105,12 +105,11 @@ class World {
 
  private:
   bool diverged();                 // checks the state, fills report_.problem
-  // f(i) for every body i, on the step's threads in blocks of kBodyGrain: for per-body work
+  // f(i) for every body i, on the step's threads in blocks of kBodyBlock: for per-body work
   // that writes only body i's entries.
-  static constexpr size_t kBodyGrain = 1024;
   template <class F>
   void eachBody(F f) {
-    pool_->forRange(model_.bodies.size(), kBodyGrain, [&](size_t first, size_t last, int) {
+    pool_->forRange(model_.bodies.size(), kBodyBlock, [&](size_t first, size_t last, int) {
       for (size_t i = first; i < last; ++i) f(i);
     });
   }

@@ -134,7 +134,7 @@ void Broadphase::update(const State& state, const std::vector<double>& reach, co
     return true;
   };
   movedNow_.resize(objects_.size());
-  pool.forRange(objects_.size(), 1024, [&](size_t first, size_t last, int) {
+  pool.forRange(objects_.size(), kBodyBlock, [&](size_t first, size_t last, int) {
     for (size_t i = first; i < last; ++i) movedNow_[i] = place(i);
   });
   for (size_t i = 0; i < objects_.size(); ++i)
@@ -238,12 +238,12 @@ bool Broadphase::findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPa
   const size_t nb = objects_.size();
   planePairs_.clear();
   for (const Plane& p : planes_) {
-    blocks = (nb + kTestGrain - 1) / kTestGrain;
+    blocks = (nb + kBodyBlock - 1) / kBodyBlock;
     if (blockFound_.size() < blocks) blockFound_.resize(blocks);
     pool.forBlocks(blocks, [&](size_t b, int) {
       std::vector<std::pair<int, int>>& kept = blockFound_[b];
       kept.clear();
-      for (size_t i = b * kTestGrain, e = std::min(nb, (b + 1) * kTestGrain); i < e; ++i) {
+      for (size_t i = b * kBodyBlock, e = std::min(nb, (b + 1) * kBodyBlock); i < e; ++i) {
         if (!objects_[i] || model_.bodies[i].isStatic) continue;
         const Box& box = reachBox_[i];
         const Vec3 centre = 0.5 * (box.lo + box.hi), half = 0.5 * (box.hi - box.lo);

@@ -242,17 +242,14 @@ class SoftStepper final : public Stepper {
     // The runs follow from the manifolds' bodies in the step's order and which of those move
     // (storeMoving's test): a step with the same list as the last (a settled scene, whose pairs
     // stay) keeps last step's runs.
+    const auto side = [&](int body) {  // the body, or its complement when it does not move
+      return static_cast<uint32_t>(c.mass[static_cast<size_t>(body)].invMass == 0 ? ~body : body);
+    };
     runKey_.resize(count);
-    for (size_t k = 0; k < count; ++k) {
-      const FrictionDef& f = cs.frictions[k];
-      const auto side = [&](int body) {  // the body, or its complement when it does not move
-        return static_cast<uint32_t>(c.mass[static_cast<size_t>(body)].invMass == 0 ? ~body : body);
-      };
-      runKey_[k] = uint64_t{side(f.a)} << 32 | side(f.b);
-    }
-    if (runsKept_ && runKey_ == lastRunKey_) return;
+    for (size_t k = 0; k < count; ++k) runKey_[k] = uint64_t{side(cs.frictions[k].a)} << 32 | side(cs.frictions[k].b);
+    // (No step's key is empty: the lanes are used only with manifolds.)
+    if (runKey_ == lastRunKey_) return;
     runKey_.swap(lastRunKey_);
-    runsKept_ = true;
     // Each manifold's successors (the next on each of its moving bodies), how many predecessors
     // it waits for, and the longest chain from it to the sweep's end.
     lastOn_.assign(c.bodies(), -1);
@@ -505,7 +502,7 @@ class SoftStepper final : public Stepper {
   // body's own entries.
   template <class F>
   static void eachBodyBlock(StepContext& c, F f) {
-    pool(c).forRange(c.bodies(), 1024, [&](size_t first, size_t last, int) { f(first, last); });
+    pool(c).forRange(c.bodies(), kBodyBlock, [&](size_t first, size_t last, int) { f(first, last); });
   }
   static ConstraintPart bodyPart(size_t first, size_t last) {
     return ConstraintPart{{}, {}, IndexRange{nullptr, static_cast<int>(first), static_cast<int>(last - first)}, {}};
@@ -569,10 +566,8 @@ class SoftStepper final : public Stepper {
   }
 
   // Warm start: sub-step 0 applies last step's λ on this step's J̌ (joints' rows, then each
-  // manifold's, colour by colour); later sub-steps as startSubStepImpulses does.
-  // The warm start of sub-step j; perBody: its per-body part is done (startSubStepImpulses of
-  // every body: warm with J̌ held, the velocities at the start kept and for j > 0 the last
-  // sub-step's change added), the rows' is left.
+  // manifold's, colour by colour); later sub-steps as startSubStepImpulses does. perBody: the
+  // per-body part (startSubStepImpulses of every body, warm with J̌ held) is done already.
   void startImpulses(StepContext& c, int j, bool perBody) {
     ConstraintSet& cs = *c.constraints;
     const bool warm = c.settings->warmStart;
@@ -676,7 +671,6 @@ class SoftStepper final : public Stepper {
   const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or runOrder_
   std::vector<int> runOrder_, runStart_;                                     // orderRuns
   std::vector<uint64_t> runKey_, lastRunKey_;  // orderRuns: each manifold's bodies, this step's and the runs'
-  bool runsKept_ = false;                      // runOrder_ and runStart_ are lastRunKey_'s
   std::vector<int> lastOn_, after_, waiting_, chain_, ready_, waitingNext_;  // orderRuns' scratch
   static constexpr size_t kManifoldGrain = 32;  // manifolds of a colour a thread takes at a time
   static constexpr size_t kIslandGrain = 512;   // manifolds of whole islands a thread takes at a time
