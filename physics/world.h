@@ -17,6 +17,7 @@
 #include "physics/state.h"
 #include "physics/steppers/stepper.h"
 
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -137,10 +138,14 @@ class World {
   // s1's manifolds by block of pairs (a thread's share), then placed in the step's list.
   struct PairBlock {
     std::vector<Manifold> made;       // the block's new manifolds (narrowphase), in pair order
-    // Each manifold of the block in pair order: k >= 0 last step's k-th kept, copied once, when
-    // placed (a manifold is 700 bytes); k < 0 made[-1 - k].
+    // Each manifold of the block in pair order: k >= 0 last step's k-th kept, copied once when
+    // placed (a manifold is 816 bytes), or aged where it is when the list stays in place; k < 0
+    // made[-1 - k].
     std::vector<int> from;
     int cached = 0, fresh = 0;        // how many were kept from last step; their new points
+    static constexpr int kNoneKept = std::numeric_limits<int>::min();
+    bool run = true;                  // its kept manifolds stand in last step's list from place
+    int shift = kNoneKept;            // `shift` on as they do here
     int points = 0;                   // contact points of its manifolds
     size_t at = 0;                    // where the block's manifolds go in the step's list
     uint32_t firstId = 0;             // the id of its first new point, from the step's first

@@ -820,6 +820,48 @@ TEST(Narrowphase, OverlappingBoxesAgreeWithFcl) {
   EXPECT_GT(same, overlapping * 9 / 10);
 }
 
+// Boxes apart: the fast path stops at the first axis that puts them beyond the margin (a
+// pyramid's neighbours in a row). That must not change which pairs get points: on random pairs
+// of random sizes and turns, from overlapping to 3 cm apart, the pair has points exactly when
+// the full bound over the 15 axes is within the margin, along that bound's axis.
+TEST(Narrowphase, BoxesBeyondTheMarginByTheirFullBoundGetNoPoints) {
+  uint64_t seed = 11;
+  auto uniform = [&] { return unitRandom(seed); };
+  Narrowphase fast;
+  const double margin = 0.01;
+  int withPoints = 0, without = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    const Shape a = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
+    const Shape b = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
+    const Vec3 dir = Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5).normalized();
+    const Pose pa{Vec3(uniform(), uniform(), uniform()), Rq(4 * Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5))};
+    Pose pb{pa.p, trial % 3 == 0 ? pa.q : Rq(4 * Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5))};
+    // Out along dir until the full bound says 0 to 3 cm apart (or a little overlapping).
+    const double want = -0.005 + 0.035 * uniform();
+    double lo = 0, hi = 4;
+    Vec3 axis;
+    for (int k = 0; k < 60; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      pb.p = pa.p + mid * dir;
+      (boxBoxGap(a.halfExtents, pa, b.halfExtents, pb, axis) < want ? lo : hi) = mid;
+    }
+    pb.p = pa.p + hi * dir;
+    const double gap = boxBoxGap(a.halfExtents, pa, b.halfExtents, pb, axis);
+    ContactPatch patch;
+    fast.collide(a, makeCollisionShape(a), pa, b, makeCollisionShape(b), pb, margin, patch);
+    if (gap > margin) {
+      EXPECT_EQ(patch.count, 0) << "trial " << trial << ": gap " << gap;
+      ++without;
+      continue;
+    }
+    ASSERT_GT(patch.count, 0) << "trial " << trial << ": gap " << gap;
+    EXPECT_NEAR(patch.p[0].n.dot(axis), 1, 1e-12) << "trial " << trial;
+    ++withPoints;
+  }
+  EXPECT_GT(withPoints, 1000);
+  EXPECT_GT(without, 1000);
+}
+
 // Rays against every shape in closed form (the server's picking), checked against the distances
 // that geometry gives, from outside, from inside, and past a body.
 TEST(Raycast, EveryShapeAtItsKnownDistance) {

@@ -99,6 +99,22 @@ TEST(Rotations, RqIsTheExactExponential) {
   EXPECT_LT((Rq(Vec3(1e-9, 0, 0)).vec() - Vec3(5e-10, 0, 0)).norm(), 1e-20);
 }
 
+// Below 1e-6 rad Rq takes cos(θ/2) from its series instead of calling cos (a settled body turns
+// less than that a sub-step): the same bits as std::cos, so no trajectory moves.
+TEST(Rotations, RqNearZeroHasTheLibrarysCosineToTheBit) {
+  std::mt19937_64 r(7);
+  std::uniform_real_distribution<double> mantissa(1, 2);
+  int checked = 0;
+  for (int e = -50; e <= -20; ++e)
+    for (int k = 0; k < 2000; ++k) {
+      const double theta = std::ldexp(mantissa(r), e);
+      if (theta >= 1e-6) continue;
+      ASSERT_EQ(Rq(Vec3(theta, 0, 0)).w(), std::cos(0.5 * theta)) << theta;
+      ++checked;
+    }
+  EXPECT_GT(checked, 50000);
+}
+
 // Section V: for small rotations composition commutes and adds to first order. The error of
 // Rq(a)∘Rq(b) against Rq(a+b) (and against Rq(b)∘Rq(a)) is second order: halving both angles
 // quarters it.

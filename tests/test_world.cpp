@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <map>
 
 using namespace substep;
 
@@ -280,6 +281,42 @@ TEST(World, NonFiniteStateIsReported) {
   EXPECT_FALSE(w.step().finite);
 }
 
+// The divergence check's limits, field by field: 1e6 m and 1e6 m/s (or rad/s) pass, the next
+// double above them and anything not finite (the orientation too) stop the step and are named.
+TEST(World, EveryStateFieldIsCheckedAtItsLimit) {
+  const Scene s = sceneFrom(R"({"gravity": [0, 0, 0],
+    "bodies": [{"name": "b", "shape": {"type": "sphere", "radius": 0.5}}]})");
+  const double above = std::nextafter(1e6, 2e6);
+  const auto problem = [&](auto edit) {
+    State initial = s.initial;
+    edit(initial.bodies[0]);
+    World w(s.model, settingsFor(Algorithm::Soft), initial);
+    const StepReport& r = w.step();
+    return r.finite ? std::string() : r.problem;
+  };
+  const auto starts = [](const std::string& text, const std::string& prefix) { return text.rfind(prefix, 0) == 0; };
+  // At the limits: nothing to report (no motion, so the check after the step sees them too).
+  EXPECT_EQ(problem([](BodyState& b) { b.x = Vec3(0.6e6, 0, 0.8e6); }), "");
+  EXPECT_EQ(problem([](BodyState& b) { b.x = Vec3(1e6, 0, 0); }), "");
+  // Speeds are checked before the step moves the body: a velocity at the limit moves it 1.7e4 m.
+  EXPECT_EQ(problem([](BodyState& b) { b.w = Vec3(0, 0, 1e6); }), "");
+  EXPECT_TRUE(starts(problem([&](BodyState& b) { b.x = Vec3(0, above, 0); }), "body \"b\" has a position beyond 1e6 m"));
+  EXPECT_TRUE(starts(problem([&](BodyState& b) { b.v = Vec3(0, 0, -above); }), "body \"b\" has a speed beyond 1e6"));
+  EXPECT_TRUE(starts(problem([&](BodyState& b) { b.w = Vec3(above, 0, 0); }), "body \"b\" has a speed beyond 1e6"));
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  for (int field = 0; field < 5; ++field)
+    for (const double bad : {nan, inf}) {
+      const std::string p = problem([&](BodyState& b) {
+        if (field == 0) b.x.y() = bad;
+        if (field == 1) b.v.z() = bad;
+        if (field == 2) b.w.x() = bad;
+        if (field == 3) b.q.w() = bad;
+        if (field == 4) b.q.z() = bad;
+      });
+      EXPECT_EQ(p, "body \"b\" has a non-finite coordinate or velocity") << "field " << field << " value " << bad;
+    }
+}
+
 // A stack at rest keeps its manifolds from step to step (the pair cache) instead of querying the
 // narrowphase again, and stays where it is.
 TEST(World, RestingStackReusesItsManifolds) {
@@ -295,6 +332,109 @@ TEST(World, RestingStackReusesItsManifolds) {
   EXPECT_EQ(cached, manifolds);
   for (size_t i = 0; i < s.model.bodies.size(); ++i)
     EXPECT_LT((w.state().bodies[i].x - s.initial.bodies[i].x).norm(), 0.01) << s.model.bodies[i].name;
+}
+
+// A settled step keeps last step's manifolds where they are, without copying them: each is last
+// step's with every point a step older. When pairs are made again, vanish or appear (the top box
+// pushed off, spheres bouncing about), the list is still every pair's manifold in pair order,
+// the kept ones last step's aged.
+TEST(World, KeptManifoldsAreLastStepsAgedByOneStep) {
+  const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/stack.json");
+  World w(s.model, settingsFor(Algorithm::Soft), s.initial);
+  for (int k = 0; k < 120; ++k) w.step();
+  const auto aged = [](std::vector<Manifold> before) {
+    for (Manifold& m : before)
+      for (int i = 0; i < m.count; ++i) ++m.points[i].age;
+    return before;
+  };
+  // The points' λ are this step's impulses (stored after the solve), so compare all but those.
+  const auto same = [](const Manifold& x, const Manifold& y) {
+    bool eq = x.a == y.a && x.b == y.b && x.count == y.count && x.relP == y.relP && x.relQ.coeffs() == y.relQ.coeffs();
+    for (int i = 0; i < x.count && eq; ++i)
+      eq = x.points[i].id == y.points[i].id && x.points[i].age == y.points[i].age &&
+           x.points[i].localA == y.points[i].localA && x.points[i].armB == y.points[i].armB;
+    return eq;
+  };
+  for (int k = 0; k < 3; ++k) {
+    const std::vector<Manifold> expected = aged(w.manifolds());
+    const StepReport& r = w.step();
+    ASSERT_EQ(r.cachedPairs, r.manifolds);
+    ASSERT_EQ(w.manifolds().size(), expected.size());
+    for (size_t m = 0; m < expected.size(); ++m) EXPECT_TRUE(same(w.manifolds()[m], expected[m])) << "step " << k << " manifold " << m;
+  }
+  // Then the top box, pushed off the stack: for 2 s pairs are made again, vanish and appear (it
+  // lands on the ground). Each step the list stays in pair order, and each manifold of a pair
+  // that had one is last step's aged (as many as cachedPairs) or detected again at this step's
+  // poses; one of a new pair has only new points.
+  int top = -1;
+  for (size_t i = 0; i < s.model.bodies.size(); ++i)
+    if (!s.model.bodies[i].isStatic && (top < 0 || w.state().bodies[i].x.y() > w.state().bodies[static_cast<size_t>(top)].x.y()))
+      top = static_cast<int>(i);
+  w.applyImpulse(top, Vec3(3, 0, 0), w.state().bodies[static_cast<size_t>(top)].x);
+  struct Seen {
+    int changedLists = 0, reshuffled = 0, remade = 0, fresh = 0;  // reshuffled: as long as before, not the same pairs
+  };
+  // Steps w, checking each step's list against the one before it.
+  const auto follow = [&](World& world, int steps) {
+    using Key = std::pair<int, int>;
+    const auto key = [](const Manifold& m) { return Key(std::min(m.a, m.b), std::max(m.a, m.b)); };
+    Seen seen;
+    for (int k = 0; k < steps; ++k) {
+      std::map<Key, Manifold> before;
+      for (const Manifold& m : aged(world.manifolds())) before[key(m)] = m;
+      const size_t count = world.manifolds().size();
+      const StepReport& r = world.step();
+      const std::vector<Manifold>& now = world.manifolds();
+      bool sameList = now.size() == count;
+      int kept = 0;
+      for (size_t m = 0; m < now.size(); ++m) {
+        if (m > 0) {
+          EXPECT_LT(key(now[m - 1]), key(now[m])) << "step " << k;
+        }
+        const auto old = before.find(key(now[m]));
+        if (old == before.end()) {
+          sameList = false;
+          for (int i = 0; i < now[m].count; ++i) EXPECT_EQ(now[m].points[i].age, 0) << "step " << k;
+          ++seen.fresh;
+        } else if (same(now[m], old->second)) {
+          ++kept;
+        } else {
+          EXPECT_NE(now[m].relP, old->second.relP) << "step " << k << " manifold " << m << ": neither kept nor detected again";
+          ++seen.remade;
+        }
+      }
+      EXPECT_EQ(kept, r.cachedPairs) << "step " << k;
+      seen.changedLists += !sameList;
+      seen.reshuffled += !sameList && now.size() == count;
+    }
+    return seen;
+  };
+  w.applyImpulse(top, Vec3(3, 0, 0), w.state().bodies[static_cast<size_t>(top)].x);
+  const Seen pushed = follow(w, 120);
+  EXPECT_GT(pushed.changedLists, 0);
+  EXPECT_GT(pushed.remade, 0);
+  EXPECT_GT(pushed.fresh, 0);
+  // And 108 spheres thrown at one another between walls, where pairs come and go every step,
+  // often one going as another comes (the list as long as before, its pairs not the same).
+  std::string json = R"({"bodies": [{"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [4, 0.5, 4]},
+      "position": [0, -0.5, 0]})";
+  for (int wall = 0; wall < 4; ++wall) {
+    const double x = wall == 0 ? -4.5 : wall == 1 ? 4.5 : 0, z = wall == 2 ? -4.5 : wall == 3 ? 4.5 : 0;
+    json += R"(, {"name": "wall)" + std::to_string(wall) + R"(", "static": true, "shape": {"type": "box", "half_extents": [)" +
+            (wall < 2 ? "0.5, 3, 5" : "5, 3, 0.5") + R"(]}, "position": [)" + std::to_string(x) + ", 3, " + std::to_string(z) + "]}";
+  }
+  for (int n = 0; n < 108; ++n) {
+    const int i = n / 18, j = n / 3 % 6, k = n % 3;
+    const double vx = ((n * 7) % 5 - 2) * 1.5, vz = ((n * 3) % 5 - 2) * 1.5;
+    json += R"(, {"name": "s)" + std::to_string(n) + R"(", "shape": {"type": "sphere", "radius": 0.4}, "position": [)" +
+            std::to_string(-3 + 1.2 * i) + ", " + std::to_string(0.5 + 1.0 * k) + ", " + std::to_string(-3 + 1.2 * j) +
+            R"(], "velocity": [)" + std::to_string(vx) + ", 0, " + std::to_string(vz) + "]}";
+  }
+  const Scene thrown = sceneFrom(json + "]}");
+  World box(thrown.model, settingsFor(Algorithm::Soft), thrown.initial);
+  const Seen bouncing = follow(box, 240);
+  EXPECT_GT(bouncing.reshuffled, 5);
+  EXPECT_GT(bouncing.remade, 100);
 }
 
 // Speculative points cover the gap a pair's relative motion can close in a step: two boxes 5 cm

@@ -74,7 +74,7 @@ void ManifoldCache::reuse(const Manifold& old) {
 
 void ManifoldCache::kept(Manifold& m, const Manifold& old) {
   m = old;  // detection pose kept: the shift is measured from there, so it cannot creep
-  for (int i = 0; i < m.count; ++i) ++m.points[i].age;
+  aged(m);
 }
 
 void ManifoldCache::take(Manifold& m) {

@@ -109,6 +109,17 @@ class ManifoldCache {
     current_.resize(n);
     return current_;
   }
+  // Or, when the list is as long as last step's and each manifold kept stands where it stood (a
+  // settled scene, or one where a few pairs were made again): last step's list is this step's.
+  // The caller ages each it keeps (kept() is a copy and aged()) and writes those it made over
+  // whichever stood in their place.
+  std::vector<Manifold>& keepAll() {
+    std::swap(current_, previous_);
+    return current_;
+  }
+  static void aged(Manifold& m) {
+    for (int i = 0; i < m.count; ++i) ++m.points[i].age;
+  }
   uint32_t claimIds(uint32_t k) {
     const uint32_t first = nextId_;
     nextId_ += k;

@@ -31,8 +31,11 @@ Pose compose(const Pose& a, const Pose& b) { return Pose{a.apply(b.p), a.q * b.q
 // reach (the 1 cm gaps of a pyramid row) would otherwise pay each step.
 // axis, if given, receives the best axis (pointing from B to A) and isFace whether it is a face
 // normal rather than the cross product of two edges.
+// With stopAbove, it stops once an axis puts them further apart than that: the bound is the
+// largest gap over the axes, so it would be above it too, and the caller only asks whether it is
+// (a pyramid's neighbours in a row, a centimetre apart, are told by their first axis).
 double boxGapLowerBound(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, Vec3* bestOut = nullptr,
-                        bool* isFace = nullptr) {
+                        bool* isFace = nullptr, double stopAbove = std::numeric_limits<double>::infinity()) {
   const Mat3 RA = A.q.toRotationMatrix(), RB = B.q.toRotationMatrix();
   const Vec3 d = B.p - A.p;
   double best = -std::numeric_limits<double>::infinity();
@@ -49,9 +52,8 @@ double boxGapLowerBound(const Vec3& hA, const Pose& A, const Vec3& hB, const Pos
       bestFace = face;
     }
   };
-  for (int i = 0; i < 3; ++i) axis(RA.col(i), true);
-  for (int i = 0; i < 3; ++i) axis(RB.col(i), true);
-  for (int i = 0; i < 3; ++i)
+  for (int i = 0; i < 6 && !(best > stopAbove); ++i) axis(i < 3 ? RA.col(i) : RB.col(i - 3), true);
+  for (int i = 0; i < 3 && !(best > stopAbove); ++i)
     for (int j = 0; j < 3; ++j) {
       const Vec3 L = RA.col(i).cross(RB.col(j));
       const double n = L.norm();
@@ -470,7 +472,7 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
   if (sA.type == ShapeType::Box && sB.type == ShapeType::Box) {
     Vec3 axis;
     bool face = true;
-    const double gap = boxGapLowerBound(sA.halfExtents, poseA, sB.halfExtents, poseB, &axis, &face);
+    const double gap = boxGapLowerBound(sA.halfExtents, poseA, sB.halfExtents, poseB, &axis, &face, margin);
     if (gap > margin) return;  // further apart than the margin: no contact and no speculative point
     // The separating axis is the normal and its gap the (negative) depth, whether the boxes are
     // apart within the margin, touching (stacked by a generator) or overlapping. Overlapping, the
