@@ -200,14 +200,12 @@ bool World::geometry() {
     from.clear();
     int points = 0;
     int cached = 0, fresh = 0;
-    // Whether each manifold kept stands as many places after the block's first as it stood in
-    // last step's list after `shift` (then in place if the block starts there).
-    bool run = true;
+    // Where the block's kept manifolds stood in last step's list, less their places in the
+    // block: one value when they all stand as they stood (then in place if the block starts there).
     int shift = PairBlock::kNoneKept;
     const auto keptAt = [&](size_t was) {
       const int d = static_cast<int>(was) - static_cast<int>(from.size() - 1);
-      run = run && (shift == PairBlock::kNoneKept || d == shift);
-      shift = d;
+      shift = shift == PairBlock::kNoneKept || shift == d ? d : PairBlock::kMixed;
     };
     ContactPatch patch;
     const size_t first = blk * kPairBlock, last = std::min(np, (blk + 1) * kPairBlock);
@@ -250,7 +248,6 @@ bool World::geometry() {
       points += out.back().count;
       from.push_back(-static_cast<int>(out.size()));
     }
-    pairBlocks_[blk].run = run;
     pairBlocks_[blk].shift = shift;
     pairBlocks_[blk].cached = cached;  // once: threads counting into neighbouring blocks would share a cache line
     pairBlocks_[blk].fresh = fresh;
@@ -266,7 +263,7 @@ bool World::geometry() {
     PairBlock& b = pairBlocks_[blk];
     b.at = at;
     b.firstId = fresh;
-    inPlace = inPlace && b.run && (b.shift == PairBlock::kNoneKept || b.shift == static_cast<int>(at));
+    inPlace = inPlace && (b.shift == PairBlock::kNoneKept || b.shift == static_cast<int>(at));
     at += b.from.size();
     fresh += static_cast<uint32_t>(b.fresh);
     report_.cachedPairs += b.cached;
@@ -277,7 +274,7 @@ bool World::geometry() {
   // In place (a settled scene, or one where a few pairs were made again): last step's list is
   // this step's, a kept manifold aged where it is rather than copied (816 bytes; 8 MB a step on
   // the 100-level pyramid), a made one written over whichever stood in its place.
-  std::vector<Manifold>& placed = inPlace ? manifolds_.keepAll() : manifolds_.place(at);
+  std::vector<Manifold>& placed = inPlace ? manifolds_.keepInPlace() : manifolds_.place(at);
   pool_->forBlocks(blocks, [&](size_t blk, int) {
     const PairBlock& b = pairBlocks_[blk];
     uint32_t id = firstId + b.firstId;

@@ -143,9 +143,10 @@ class World {
     // made[-1 - k].
     std::vector<int> from;
     int cached = 0, fresh = 0;        // how many were kept from last step; their new points
-    static constexpr int kNoneKept = std::numeric_limits<int>::min();
-    bool run = true;                  // its kept manifolds stand in last step's list from place
-    int shift = kNoneKept;            // `shift` on as they do here
+    // Its kept manifolds stand in last step's list from place `shift` on as they do here; or
+    // none is kept, or they stand otherwise (kMixed, never a place).
+    static constexpr int kNoneKept = std::numeric_limits<int>::min(), kMixed = kNoneKept + 1;
+    int shift = kNoneKept;
     int points = 0;                   // contact points of its manifolds
     size_t at = 0;                    // where the block's manifolds go in the step's list
     uint32_t firstId = 0;             // the id of its first new point, from the step's first

@@ -96,7 +96,7 @@ class ManifoldCache {
   // add() and reuse() in two halves, so that the first can run on many threads: made() and kept()
   // build a pair's manifold from last step's `old` (null: none) without touching the cache (a new
   // point gets id 0); take() then gives new points their ids and appends it, in pair order.
-  // In place (a manifold is 700 bytes, a copy a measurable part of s1): made() fills a
+  // In place (a manifold is 816 bytes, a copy a measurable part of s1): made() fills a
   // default-constructed `m`; kept() overwrites any.
   static void made(Manifold& m, int a, int b, const Pose& poseA, const Pose& poseB, double friction, double restitution,
                    const ContactPatch& patch, double reach, const Manifold* old);
@@ -113,7 +113,7 @@ class ManifoldCache {
   // settled scene, or one where a few pairs were made again): last step's list is this step's.
   // The caller ages each it keeps (kept() is a copy and aged()) and writes those it made over
   // whichever stood in their place.
-  std::vector<Manifold>& keepAll() {
+  std::vector<Manifold>& keepInPlace() {
     std::swap(current_, previous_);
     return current_;
   }
