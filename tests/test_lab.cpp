@@ -664,7 +664,9 @@ TEST(Advice, CheapestThatMeetsTheTarget) {
   o.seconds = 2;
   o.targets = {Target{"joint_error", 0.05}};
   o.candidates = parseMethods("a2:m=1|2|20|1000:h=1/60,a5:n=8:m=8");
-  o.repeat = 1;
+  // A5 at n = 8, m = 8 costs about twice A2 at m = 20 here: one timed run each was reversed once
+  // in CI, under the other tests' load; the median of five is not.
+  o.repeat = 5;
   const Advice a = advise(s, o);
   ASSERT_GE(a.best, 0);
   const Candidate& best = a.tried[static_cast<size_t>(a.best)];
