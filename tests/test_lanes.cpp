@@ -21,6 +21,7 @@ namespace {
 struct Stepped {
   std::vector<std::string> hashes;  // the state's after every step
   int laneRuns = 0;                 // the most runs a step solved in lanes
+  int deferred = 0;                 // steps whose contact rows the lanes formulated (no row stored)
 };
 
 Stepped trajectory(const Scene& s, SolverSettings st, int steps) {
@@ -30,6 +31,7 @@ Stepped trajectory(const Scene& s, SolverSettings st, int steps) {
     const StepReport& r = w.step();
     out.hashes.push_back(hashText(stateHash(w.state())));
     out.laneRuns = std::max(out.laneRuns, r.solver.laneRuns);
+    out.deferred += w.constraints().contactRowsDeferred();
     if (!r.finite) break;
   }
   return out;
@@ -44,6 +46,15 @@ SolverSettings soft(const Scene& s, bool lanes, bool colours, bool warm) {
   return resolve(o);
 }
 
+// Whether a world's rows hold its contacts' (false: only the joints'), at its first step with contacts.
+bool storesContactRows(const Scene& s, const SolverSettings& st) {
+  World w(s.model, st, s.initial);
+  for (int k = 0; k < 240 && w.constraints().frictions.empty(); ++k) w.step();
+  const ConstraintSet& cs = w.constraints();
+  EXPECT_FALSE(cs.frictions.empty());
+  return cs.rows.size() == static_cast<size_t>(cs.rowCount()) && cs.rowCount() > cs.contactFirstRow;
+}
+
 Scene scene(const char* name) { return loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + name); }
 
 }  // namespace
@@ -53,8 +64,10 @@ TEST(Lanes, SameTrajectoryAsOneManifoldAtATime) {
     const char* scene;
     int steps;
   };
-  // The pyramid: one island, levels diagonal across it; the ragdoll pile: joints' rows before the
-  // contacts and re-formulated every sub-step (the lanes' λ go back to the rows each sub-step).
+  // The pyramid: one island, levels diagonal across it; warm, the lanes formulate its contacts'
+  // rows and no row is stored (ConstraintSet::askDeferredContactRows). The ragdoll pile: joints'
+  // rows before the contacts and re-formulated every sub-step (the lanes' λ go back to the rows
+  // each sub-step), so the contact rows are stored, as they are cold.
   for (const Case& c : {Case{"pyramid.json", 30}, Case{"ragdoll_pile.json", 30}}) {
     const Scene s = scene(c.scene);
     for (bool colours : {false, true})
@@ -64,6 +77,10 @@ TEST(Lanes, SameTrajectoryAsOneManifoldAtATime) {
         const Stepped eight = trajectory(s, soft(s, true, colours, warm), c.steps);
         EXPECT_EQ(one.laneRuns, 0) << what;
         EXPECT_GT(eight.laneRuns, 0) << what << ": the lanes were not used";
+        EXPECT_EQ(one.deferred, 0) << what;
+        const bool defers = warm && std::string(c.scene) == "pyramid.json";
+        EXPECT_EQ(eight.deferred, defers ? c.steps : 0) << what;
+        EXPECT_EQ(storesContactRows(s, soft(s, true, colours, warm)), !defers) << what;
         ASSERT_EQ(one.hashes.size(), eight.hashes.size()) << what;
         for (size_t k = 0; k < one.hashes.size(); ++k)
           ASSERT_EQ(one.hashes[k], eight.hashes[k]) << what << ", step " << k + 1;

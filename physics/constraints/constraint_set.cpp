@@ -54,8 +54,13 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   const size_t nm = manifolds.size();
   manifoldPoint_.resize(nm + 1);
   manifoldPoint_[0] = 0;
-  for (size_t k = 0; k < nm; ++k) manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
-  rows.resize(jointLambda_.size() + static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm);
+  bool bounces = false;
+  for (size_t k = 0; k < nm; ++k) {
+    manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
+    bounces |= manifolds[k].restitution != 0;
+  }
+  deferred_ = deferAsked_ && model.joints.empty() && settings.warmStart && !bounces;
+  rows.resize(jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm));
   size_t next = 0;
   auto take = [&](int n) {
     Row* r = rows.data() + next;
@@ -115,14 +120,14 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     for (size_t i = first; i < last; ++i) frames_[i] = Frame(poses[i]);
   });
   const bool worldFrame = settings.contactFrame == ContactFrame::World;
-  const bool warm = settings.warmStart, exempt = settings.frictionExempt;
+  warm_ = settings.warmStart;
+  exempt_ = settings.frictionExempt;
+  mass_ = &mass;
+  h_ = h;
+  applyScale_ = applyScale;
   parallel(nm, 32, [&](size_t first, size_t last) {
     for (size_t mk = first; mk < last; ++mk) {
       const Manifold& m = manifolds[mk];
-      const Frame& A = frames_[static_cast<size_t>(m.a)];
-      const Frame& B = frames_[static_cast<size_t>(m.b)];
-      Row* r = rows.data() + manifoldRow_[mk];
-      for (int k = 0; k < m.count + 3; ++k) resetRowState(r[k]);  // the rest: formulated and finished below
       FrictionDef f;
       f.a = m.a;
       f.b = m.b;
@@ -146,12 +151,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
         c.row = manifoldRow_[mk] + k;
         c.restitution = m.restitution;
         c.approach = 0;  // recordApproach's
-        formulateContact(c, A, B, h, slop_, r[k], false);
-        r[k].lambda = warm ? p.lambda : 0.0;
-        // Apart at the step's start (C > 0, β < 0): a speculative point. Without speculative points
-        // (the report has none) it stays in the manifold but holds nothing until it touches.
-        r[k].speculative = r[k].bias < 0 && speculative_;
-        if (r[k].bias < 0 && !speculative_) r[k].hi = r[k].lambda = 0;
+        c.lastLambda = p.lambda;
         f.localA += share(p.localA);  // the centroids
         f.localB += share(p.localB);
         f.armA += share(p.armA);
@@ -165,22 +165,13 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       for (int k = 0; k < m.count; ++k) f.radius += share((m.points[k].localA - f.localA).norm());
       f.row = manifoldRow_[mk] + m.count;
       f.qB = poses[static_cast<size_t>(m.b)].q;
-      Row* fr = r + m.count;
-      formulateFriction(f, A, B, fr, false);
-      if (warm) {
-        carryFrictionImpulse(m.frictionImpulse, B, fr);  // last step's, on this step's tangents
-        fr[2].lambda = m.twistImpulse;
-      }
-      if (!exempt)
-        for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
+      f.lastImpulse = m.frictionImpulse;
+      f.lastTwist = m.twistImpulse;
       frictions[mk] = f;
       bounces_[mk] = m.restitution != 0;
-      // M̌⁻¹J̌ᵀ, the effective masses and the friction couplings while the rows are in cache, not
-      // in a pass over every row afterwards (finishAll does the joints').
-      const BodyMass& mA = mass[static_cast<size_t>(m.a)];
-      const BodyMass& mB = mass[static_cast<size_t>(m.b)];
-      for (int k = 0; k < m.count + 3; ++k) finishRow(r[k], mA, mB, applyScale);
-      couplings[mk] = frictionCoupling(fr);
+      // The rows, M̌⁻¹J̌ᵀ, the effective masses and the friction coupling while the definitions are
+      // in cache, not in a pass over every row afterwards (finishAll does the joints').
+      if (!deferred_) formulateManifold(mk, rows.data() + manifoldRow_[mk], couplings[mk]);
     }
   });
   bouncing.clear();
@@ -213,7 +204,8 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     f.frictionUnit = static_cast<int>(units.size());
     units.push_back(SolveUnit{f.row, 3, SolveUnit::Friction, -1});
   };
-  forEachContactUnit(frictions, unitOrder_, normalUnits, frictionUnit);
+  // Deferred, the lanes solve the manifolds: no contact unit refers to a row not stored.
+  if (!deferred_) forEachContactUnit(frictions, unitOrder_, normalUnits, frictionUnit);
   finishAll(mass, applyScale, true);
   // The active set each contact block ended the last step with is where this step's starts.
   for (size_t k = 0; k < frictions.size(); ++k)
@@ -226,6 +218,54 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   const bool softIslands =
       settings.algorithm == Algorithm::Soft && !softLanes && colourStart.empty() && pool_ && pool_->threads() > 1;
   findIslands((settings.islands && settings.algorithm == Algorithm::A5) || softIslands);
+}
+
+void ConstraintSet::formulateManifold(size_t mk, Row* r, FrictionCoupling& coupling) const {
+  // From the definitions alone, not the manifold: a caller taking the manifolds out of their order
+  // reads these few contiguous lines, not the manifold's 816 bytes as well.
+  const FrictionDef& f = frictions[mk];
+  const Frame& A = frames_[static_cast<size_t>(f.a)];
+  const Frame& B = frames_[static_cast<size_t>(f.b)];
+  const ContactDef* c = &contacts[static_cast<size_t>(manifoldPoint_[mk])];
+  const int count = f.normalCount;
+  for (int k = 0; k < count + 3; ++k) resetRowState(r[k]);  // the rest: formulated and finished below
+  for (int k = 0; k < count; ++k) {
+    formulateContact(c[k], A, B, h_, slop_, r[k], false);
+    r[k].lambda = warm_ ? c[k].lastLambda : 0.0;
+    // Apart at the step's start (C > 0, β < 0): a speculative point. Without speculative points
+    // (the report has none) it stays in the manifold but holds nothing until it touches.
+    r[k].speculative = r[k].bias < 0 && speculative_;
+    if (r[k].bias < 0 && !speculative_) r[k].hi = r[k].lambda = 0;
+  }
+  Row* fr = r + count;
+  formulateFriction(f, A, B, fr, false);
+  if (warm_) {
+    carryFrictionImpulse(f.lastImpulse, B, fr);  // last step's, on this step's tangents
+    fr[2].lambda = f.lastTwist;
+  }
+  if (!exempt_)
+    for (int k = 0; k < 3; ++k) fr[k].velocityLevel = false;  // the report's rule on every row
+  const BodyMass& mA = (*mass_)[static_cast<size_t>(f.a)];
+  const BodyMass& mB = (*mass_)[static_cast<size_t>(f.b)];
+  for (int k = 0; k < count + 3; ++k) finishRow(r[k], mA, mB, applyScale_);
+  coupling = frictionCoupling(fr);
+}
+
+namespace {
+void prefetchBytes(const void* from, size_t bytes) {
+  const char* p = static_cast<const char*>(from);
+  for (const char* end = p + bytes; p < end; p += 64) __builtin_prefetch(p);
+}
+}  // namespace
+
+void ConstraintSet::prefetchManifold(size_t k) const {
+  const size_t first = static_cast<size_t>(manifoldPoint_[k]), last = static_cast<size_t>(manifoldPoint_[k + 1]);
+  prefetchBytes(&contacts[first], (last - first) * sizeof(ContactDef));
+  prefetchBytes(&frictions[k], sizeof(FrictionDef));
+}
+
+size_t ConstraintSet::formulationBytes() const {
+  return frictions.size() * sizeof(FrictionDef) + contacts.size() * sizeof(ContactDef);
 }
 
 void ConstraintSet::colourManifolds(const std::vector<Manifold>& manifolds, const std::vector<BodyMass>& mass, bool on) {
@@ -578,8 +618,20 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
     for (int i = 0; i < ref.count; ++i)
       jointLambda_[static_cast<size_t>(jointLambdaFirst_[static_cast<size_t>(ref.joint)] + i)] =
           rows[static_cast<size_t>(ref.first + i)].lambda;
+  if (deferred_) {
+    parallel(manifolds.size(), 256, [&](size_t first, size_t last) {
+      for (size_t f = first; f < last; ++f) {
+        Manifold& m = manifolds[f];
+        const ManifoldImpulses& i = impulses[f];
+        for (int p = 0; p < m.count; ++p) m.points[p].lambda = i.normal[p];
+        m.frictionImpulse = i.tangentInB;
+        m.twistImpulse = i.twist;
+      }
+    });
+    return;
+  }
   // A manifold's normal rows are its first (build() lays them out so): its points' ContactDefs,
-  // 184 bytes each, are not read for their row (on the 100-level pyramid, 7 MB a step).
+  // 192 bytes each, are not read for their row (on the 100-level pyramid, 7 MB a step).
   parallel(manifolds.size(), 256, [&](size_t first, size_t last) {
     for (size_t f = first; f < last; ++f) {
       Manifold& m = manifolds[f];

@@ -69,6 +69,32 @@ class ConstraintSet {
   void refinishJoints(const std::vector<BodyMass>& mass, double applyScale);
   // Keeps this step's impulses: in the manifolds (for warm starting and overlays) and per joint.
   void storeImpulses(std::vector<Manifold>& manifolds);
+
+  // Contact rows formulated where they are solved. The soft step in lanes can formulate each
+  // manifold's rows as it fills the manifold's lane (formulateManifold) instead of build() writing
+  // every contact row to `rows` and the lanes reading them back: asked before build(), which
+  // grants it when nothing else reads a contact's row (no joints, no restitution, warm started).
+  // Granted, `rows` holds no contact row (frictions' and contacts' row indices are where build()
+  // would have put them), and the stepper leaves the step's impulses in `impulses` for
+  // storeImpulses. The same numbers either way (docs/benchmarks.md).
+  void askDeferredContactRows(bool ask) { deferAsked_ = ask; }
+  bool contactRowsDeferred() const { return deferred_; }
+  // Manifold k's rows as build() writes them to rows[frictions[k].firstNormal ..] (its points'
+  // normal rows, then its three friction rows: normalCount + 3), and their friction coupling.
+  // Valid from build() while the masses it was given live.
+  void formulateManifold(size_t k, Row* out, FrictionCoupling& coupling) const;
+  // Asks the cache for what formulateManifold(k) reads (a caller taking the manifolds out of their
+  // order does, a few ahead, when they outgrow the cache); and how many bytes that is for all.
+  void prefetchManifold(size_t k) const;
+  size_t formulationBytes() const;
+  struct ManifoldImpulses {
+    double normal[kMaxManifoldPoints];  // each point's λ [N s]
+    Vec3 tangentInB;                    // the friction impulse in B's frame (frictionImpulseInB) [N s]
+    double twist;                       // [N m s]
+  };
+  std::vector<ManifoldImpulses> impulses;  // deferred: per manifold, written by the stepper
+  // Rows of the step: in `rows`, or with the contact rows deferred where build() would have put them.
+  int rowCount() const { return manifoldRow_.empty() ? static_cast<int>(rows.size()) : manifoldRow_.back(); }
   // Records each contact's normal velocity J̌v̌ at the step's start, for restitution.
   void recordApproach(const Vec3* v, const Vec3* w);
 
@@ -127,6 +153,11 @@ class ConstraintSet {
     else f(0, count);
   }
   std::vector<int> manifoldRow_, manifoldPoint_;  // per manifold: its first row and first point; one past the last
+  // What formulateManifold reads of the last build().
+  bool deferAsked_ = false, deferred_ = false;
+  const std::vector<BodyMass>* mass_ = nullptr;
+  double h_ = 0, applyScale_ = 1;
+  bool warm_ = false, exempt_ = true;
   std::vector<unsigned char> bounces_;            // per manifold: its pair has restitution
   double slop_ = 0;
   bool stableBlocks_ = false, contactBlocks_ = false, speculative_ = true, motorUnscaled_ = true;

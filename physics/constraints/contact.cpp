@@ -48,7 +48,11 @@ void formulateFriction(const FrictionDef& f, const Frame& A, const Frame& B, Row
 }
 
 Vec3 frictionImpulseInB(const Quat& qB, const Row* rows) {
-  return qB.conjugate() * (rows[0].lambda * rows[0].lin + rows[1].lambda * rows[1].lin);
+  return frictionImpulseInB(qB, rows[0].lambda, rows[0].lin, rows[1].lambda, rows[1].lin);
+}
+
+Vec3 frictionImpulseInB(const Quat& qB, double lambda1, const Vec3& t1, double lambda2, const Vec3& t2) {
+  return qB.conjugate() * (lambda1 * t1 + lambda2 * t2);
 }
 
 void carryFrictionImpulse(const Vec3& impulseInB, const Frame& B, Row* rows) {

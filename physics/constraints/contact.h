@@ -35,6 +35,7 @@ struct ContactDef {
   int row = 0;                 // its normal row
   double restitution = 0;      // e of the pair
   double approach = 0;         // J̌v̌ at the step's start, before ext: < 0 when closing [m/s]
+  double lastLambda = 0;       // the point's λ at the end of the last step, which warm starting takes [N s]
 };
 
 struct FrictionDef {
@@ -52,6 +53,8 @@ struct FrictionDef {
   int unit = -1;               // their contact block's SolveUnit, if they are one
   int firstNormalUnit = 0, frictionUnit = 0;  // the SolveUnits of its normal rows (1 or normalCount), of its friction
   Quat qB = Quat::Identity();  // B's orientation when formulated: warm-start impulses are kept in B's frame
+  Vec3 lastImpulse = Vec3::Zero();  // the manifold's tangential impulse at the end of the last step, in B's frame [N s]
+  double lastTwist = 0;             // ... and its twist [N m s]
 };
 
 // (pa - pb)·n at the given poses: negative when penetrating [m].
@@ -67,6 +70,8 @@ void formulateFriction(const FrictionDef& f, const Frame& A, const Frame& B, Row
 // The tangential impulse λ1 t1 + λ2 t2 of friction rows formulated with B at qB, as a vector
 // fixed in B (B's frame): how a warm-started impulse is carried, between steps and sub-steps.
 Vec3 frictionImpulseInB(const Quat& qB, const Row* rows);
+// ... of the tangent rows' impulses λ1, λ2 on their directions t1, t2 (their `lin`).
+Vec3 frictionImpulseInB(const Quat& qB, double lambda1, const Vec3& t1, double lambda2, const Vec3& t2);
 // ... and such an impulse projected on the tangents of friction rows formulated at B: whichever
 // basis the normal now gets (tangentBasis switches at |n.x| = 1/√3), the impulse keeps its
 // direction on B.

@@ -9,8 +9,10 @@
 // the trajectory table holds every soft run).
 //
 // The data is laid out per group of eight manifolds, each field eight doubles (one a lane): built
-// from the rows once a step with their λ (SoftStepper::buildLanes), solved every sweep, the
-// impulses written back to the rows when the step ends (with joints or cold, each sub-step).
+// once a step with the rows' λ (SoftStepper::buildLanes), solved every sweep, the impulses written
+// back to the rows when the step ends (with joints or cold, each sub-step). Warm and without
+// joints or restitution, no contact row is stored: each manifold's are formulated as its lane is
+// filled, and its impulses go to ConstraintSet::impulses (ConstraintSet::askDeferredContactRows).
 //
 // No Eigen here: the kernel is compiled three times, for AVX-512, for AVX2 and for the baseline
 // x86-64 (SSE2), and the widest the processor runs is taken at run time. Inline functions shared

@@ -69,7 +69,7 @@ class SoftStepper final : public Stepper {
     const Softness joint = makeSoft(std::min(st.jointHertz, 0.25 / h), st.jointDamping, h);
     c.stats = StepStats{};
     c.rowsHeld = cs.joints.empty();  // contact J̌ held over the step; joints re-formulated
-    c.stats.rows = static_cast<int>(cs.rows.size());
+    c.stats.rows = cs.rowCount();
 
     // What each row is, and for contacts C⁰ and the softness.
     soft_[kJointSoft] = joint;
@@ -119,7 +119,7 @@ class SoftStepper final : public Stepper {
       });
       startImpulses(c, j, perBody);
       // The step reports the residual of its last solve sweep; the others do not measure it.
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) {
+      for (int i = 0; i < m && c.stats.rows > 0; ++i) {
         if (j + 1 == n && i + 1 == m) c.stats.residual = softSweep<true>(c, solve);
         else softSweep<false>(c, solve);
       }
@@ -136,14 +136,20 @@ class SoftStepper final : public Stepper {
         }
       });
       if (!cs.joints.empty()) cs.reformulate(c.subPoses, c.mass, h, ConstraintSet::Reformulation::JointRows, 1.0);
-      for (int i = 0; i < m && !cs.rows.empty(); ++i) softSweep<false>(c, relax);
+      for (int i = 0; i < m && c.stats.rows > 0; ++i) softSweep<false>(c, relax);
       // Back to the rows, where the next sub-step's warm start (with joints, J̌ re-formulated)
       // and after the step restitution, the forces and the next step read them.
-      if (lanes_ && (j + 1 == n || !c.rowsHeld || !st.warmStart)) lanesToRows(c);
+      if (lanes_ && cs.contactRowsDeferred() && j + 1 == n) lanesToImpulses(c);
+      else if (lanes_ && (j + 1 == n || !c.rowsHeld || !st.warmStart)) lanesToRows(c);
       if (perBody) eachBodyBlock(c, [&](size_t first, size_t last) { endSubStepImpulses(c, bodyPart(first, last)); });
     }
     c.stats.iterations = 2 * n * m;
     applyRestitution(c, c.v.data(), c.w.data(), 1.0);
+  }
+
+  // In lanes, warm and held (no joints), the contacts' rows are formulated as the lanes are filled.
+  bool formulatesContactRows(const SolverSettings& st) const override {
+    return st.lanes && st.contactOrder == ContactOrder::Manifold && st.warmStart;
   }
 
   // s4: the sub-steps moved the coordinates already; the velocity is the relaxed one.
@@ -342,9 +348,12 @@ class SoftStepper final : public Stepper {
     c.stats.laneGroups = static_cast<int>(groups);
     groups_.resize(groups);
     const double h = c.h() / c.n();
-    const bool ahead = fetchAhead(cs.rows);
+    const bool deferred = cs.contactRowsDeferred();
+    const bool ahead = outgrowsL2(deferred ? cs.formulationBytes() : cs.rows.size() * sizeof(Row));
     const auto fill = [&](const Segment& seg, size_t gi) {
       lanes::Group& g = groups_[gi];
+      Row formulated[lanes::kMaxNormals + 3];  // deferred: a lane's manifold's rows, as build() would store them
+      FrictionCoupling coupling;
       const size_t per = seg.serial ? 1 : lanes::kLanes;
       const size_t first = (gi - seg.first) * per;
       g.count = static_cast<int>(std::min(per, seg.count - first));
@@ -352,7 +361,11 @@ class SoftStepper final : public Stepper {
       for (int l = 0; l < lanes::kLanes; ++l) {
         const size_t at = seg.order + first + static_cast<size_t>(l), end = seg.order + seg.count;
         if (ahead && at + 2 * kAhead < end) __builtin_prefetch(&cs.frictions[static_cast<size_t>(order[at + 2 * kAhead])]);
-        if (ahead && at + kAhead < end) prefetchRows(rows, cs.frictions[static_cast<size_t>(order[at + kAhead])]);
+        if (ahead && at + kAhead < end) {
+          const size_t next = static_cast<size_t>(order[at + kAhead]);
+          if (deferred) cs.prefetchManifold(next);
+          else prefetchRows(rows, cs.frictions[next]);
+        }
         // A lane not in use reads lane 0's bodies and, with zero rows and masses, writes nothing.
         const bool used = l < g.count;
         const size_t k = static_cast<size_t>(order[used ? at : seg.order + first]);
@@ -360,11 +373,14 @@ class SoftStepper final : public Stepper {
         g.manifold[l] = static_cast<int>(k);
         g.a[l] = f.a;
         g.b[l] = f.b;
-        const Row& fr = rows[f.row];
+        if (deferred && used) cs.formulateManifold(k, formulated, coupling);
+        const Row* normalRows = deferred ? formulated : &rows[f.firstNormal];
+        const Row* frictionRows = deferred ? formulated + f.normalCount : &rows[f.row];
+        const Row& fr = frictionRows[0];
         const BodyMass& A = c.mass[static_cast<size_t>(f.a)];
         const BodyMass& B = c.mass[static_cast<size_t>(f.b)];
         // The rows' M̌⁻¹J̌ᵀ are the masses times J̌ (scale 1): checked where asserts run.
-        assert(fr.mA == A.invMass && fr.mB == B.invMass && fr.mAngA == A.invI.cwiseProduct(fr.angA));
+        assert(!used || (fr.mA == A.invMass && fr.mB == B.invMass && fr.mAngA == A.invI.cwiseProduct(fr.angA)));
         g.mA.x[l] = used ? fr.mA : 0;
         g.mB.x[l] = used ? fr.mB : 0;
         for (int i = 0; i < 3; ++i) {
@@ -375,20 +391,21 @@ class SoftStepper final : public Stepper {
         g.massScale.x[l] = s.massScale;
         g.biasRate.x[l] = s.biasRate;
         g.impulseScale.x[l] = s.impulseScale;
-        const FrictionCoupling& cp = cs.couplings[static_cast<size_t>(cs.units[static_cast<size_t>(f.frictionUnit)].block)];
+        const FrictionCoupling& cp =
+            deferred ? coupling : cs.couplings[static_cast<size_t>(cs.units[static_cast<size_t>(f.frictionUnit)].block)];
         g.g10.x[l] = used ? cp.g10 : 0;
         g.g20.x[l] = used ? cp.g20 : 0;
         g.g21.x[l] = used ? cp.g21 : 0;
         const int normals = used ? f.normalCount : 0;
         g.normals = std::max(g.normals, normals);
         for (int q = 0; q < lanes::kMaxNormals; ++q) {
-          const Row* r = q < normals ? &rows[f.firstNormal + q] : nullptr;
+          const Row* r = q < normals ? &normalRows[q] : nullptr;
           assert(!r || (r->lo == 0 && std::isinf(r->hi)));
           laneRow(g.normal[q], l, r);
           g.normal[q].c0.x[l] = r ? contactC0(*r, h) : 0;
         }
         for (int i = 0; i < 3; ++i) {
-          const Row* r = used ? &rows[f.row + i] : nullptr;
+          const Row* r = used ? &frictionRows[i] : nullptr;
           assert(!r || (r->bias == 0 && r->lo == -r->hi && r->normalRow == f.firstNormal && r->normalCount == f.normalCount));
           laneRow(g.friction[i], l, r);
           g.friction[i].mu.x[l] = r ? r->hi : 0;
@@ -418,16 +435,17 @@ class SoftStepper final : public Stepper {
     to.pushed.x[l] = r && r->pushed ? -1 : 0;
   }
 
-  // buildLanes takes the manifolds in the runs' order, not in their rows' order in memory, which
-  // no hardware prefetch follows. Rows that outgrow the core's L2 cache come from L3 or memory:
-  // those kAhead manifolds on are then fetched while these are copied (docs/benchmarks.md).
+  // buildLanes takes the manifolds in the runs' order, not in their rows' (or, formulating them,
+  // their definitions') order in memory, which no hardware prefetch follows. What outgrows the
+  // core's L2 cache comes from L3 or memory: kAhead manifolds on is then fetched while these are
+  // filled (docs/benchmarks.md).
   static constexpr size_t kAhead = 2;
-  static bool fetchAhead(const std::vector<Row>& rows) {
+  static bool outgrowsL2(size_t bytes) {
     static const size_t l2 = [] {
-      const long bytes = sysconf(_SC_LEVEL2_CACHE_SIZE);
-      return bytes > 0 ? static_cast<size_t>(bytes) : size_t{1} << 20;
+      const long size = sysconf(_SC_LEVEL2_CACHE_SIZE);
+      return size > 0 ? static_cast<size_t>(size) : size_t{1} << 20;
     }();
-    return rows.size() * sizeof(Row) > l2;
+    return bytes > l2;
   }
   static void prefetchRows(const Row* rows, const FrictionDef& f) {
     const char* p = reinterpret_cast<const char*>(rows + f.firstNormal);
@@ -463,6 +481,29 @@ class SoftStepper final : public Stepper {
       r.pushed = from.pushed.x[l] != 0;
     });
   }
+
+  // Deferred contact rows (no row to write back to): each manifold's impulses for storeImpulses,
+  // as it would take them from the rows.
+  void lanesToImpulses(StepContext& c) {
+    ConstraintSet& cs = *c.constraints;
+    cs.impulses.resize(cs.frictions.size());
+    pool(c).forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
+      for (size_t gi = b; gi < e; ++gi) {
+        const lanes::Group& g = groups_[gi];
+        for (int l = 0; l < g.count; ++l) {
+          const size_t k = static_cast<size_t>(g.manifold[l]);
+          const FrictionDef& fd = cs.frictions[k];
+          ConstraintSet::ManifoldImpulses& to = cs.impulses[k];
+          for (int q = 0; q < fd.normalCount; ++q) to.normal[q] = g.normal[q].lambda.x[l];
+          const lanes::FrictionLanes* f = g.friction;
+          to.tangentInB = frictionImpulseInB(fd.qB, f[0].lambda.x[l], laneVector(f[0].lin, l), f[1].lambda.x[l],
+                                             laneVector(f[1].lin, l));
+          to.twist = f[2].lambda.x[l];
+        }
+      }
+    });
+  }
+  static Vec3 laneVector(const lanes::Doubles* v, int l) { return Vec3(v[0].x[l], v[1].x[l], v[2].x[l]); }
 
   // The manifolds' part of a sweep in the lanes.
   void sweepLanes(StepContext& c, const Pass& p, bool measure) {

@@ -68,6 +68,9 @@ class Stepper {
   virtual ~Stepper() = default;
   virtual void stepVelocities(StepContext& c) = 0;   // s3
   virtual void stepCoordinates(StepContext& c) = 0;  // s4
+  // Whether, under these settings, it formulates the contacts' rows itself as it solves them
+  // (ConstraintSet::askDeferredContactRows).
+  virtual bool formulatesContactRows(const SolverSettings&) const { return false; }
 };
 
 std::unique_ptr<Stepper> makeStepper(Algorithm a);
