@@ -54,10 +54,12 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   const size_t nm = manifolds.size();
   manifoldPoint_.resize(nm + 1);
   manifoldPoint_[0] = 0;
+  bounces_.resize(nm);
   bool bounces = false;
   for (size_t k = 0; k < nm; ++k) {
     manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
-    bounces |= manifolds[k].restitution != 0;
+    bounces_[k] = manifolds[k].restitution != 0;
+    bounces |= bounces_[k];
   }
   deferred_ = deferAsked_ && model.joints.empty() && settings.warmStart && !bounces;
   rows.resize(jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm));
@@ -113,7 +115,6 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   manifoldRow_[nm] = at;
   frictions.resize(nm);  // every element written below
   couplings.resize(nm);  // manifold k's friction unit's, written below (finishAll numbers them so)
-  bounces_.resize(nm);
   contacts.resize(static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
   frames_.resize(poses.size());
   parallel(poses.size(), 256, [&](size_t first, size_t last) {
@@ -168,7 +169,6 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       f.lastImpulse = m.frictionImpulse;
       f.lastTwist = m.twistImpulse;
       frictions[mk] = f;
-      bounces_[mk] = m.restitution != 0;
       // The rows, M̌⁻¹J̌ᵀ, the effective masses and the friction coupling while the definitions are
       // in cache, not in a pass over every row afterwards (finishAll does the joints').
       if (!deferred_) formulateManifold(mk, rows.data() + manifoldRow_[mk], couplings[mk]);
@@ -259,12 +259,18 @@ void prefetchBytes(const void* from, size_t bytes) {
 }  // namespace
 
 void ConstraintSet::prefetchManifold(size_t k) const {
+  if (!deferred_) {
+    const FrictionDef& f = frictions[k];
+    prefetchBytes(&rows[static_cast<size_t>(f.firstNormal)], static_cast<size_t>(f.row + 3 - f.firstNormal) * sizeof(Row));
+    return;
+  }
   const size_t first = static_cast<size_t>(manifoldPoint_[k]), last = static_cast<size_t>(manifoldPoint_[k + 1]);
   prefetchBytes(&contacts[first], (last - first) * sizeof(ContactDef));
   prefetchBytes(&frictions[k], sizeof(FrictionDef));
 }
 
-size_t ConstraintSet::formulationBytes() const {
+size_t ConstraintSet::manifoldBytes() const {
+  if (!deferred_) return rows.size() * sizeof(Row);
   return frictions.size() * sizeof(FrictionDef) + contacts.size() * sizeof(ContactDef);
 }
 

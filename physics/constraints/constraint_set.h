@@ -83,10 +83,11 @@ class ConstraintSet {
   // normal rows, then its three friction rows: normalCount + 3), and their friction coupling.
   // Valid from build() while the masses it was given live.
   void formulateManifold(size_t k, Row* out, FrictionCoupling& coupling) const;
-  // Asks the cache for what formulateManifold(k) reads (a caller taking the manifolds out of their
-  // order does, a few ahead, when they outgrow the cache); and how many bytes that is for all.
+  // Asks the cache for manifold k's rows, or deferred for what formulateManifold(k) reads (a caller
+  // taking the manifolds out of their order does, a few ahead, when they outgrow the cache); and
+  // how many bytes that is for all the manifolds.
   void prefetchManifold(size_t k) const;
-  size_t formulationBytes() const;
+  size_t manifoldBytes() const;
   struct ManifoldImpulses {
     double normal[kMaxManifoldPoints];  // each point's λ [N s]
     Vec3 tangentInB;                    // the friction impulse in B's frame (frictionImpulseInB) [N s]

@@ -349,7 +349,7 @@ class SoftStepper final : public Stepper {
     groups_.resize(groups);
     const double h = c.h() / c.n();
     const bool deferred = cs.contactRowsDeferred();
-    const bool ahead = outgrowsL2(deferred ? cs.formulationBytes() : cs.rows.size() * sizeof(Row));
+    const bool ahead = outgrowsL2(cs.manifoldBytes());
     const auto fill = [&](const Segment& seg, size_t gi) {
       lanes::Group& g = groups_[gi];
       Row formulated[lanes::kMaxNormals + 3];  // deferred: a lane's manifold's rows, as build() would store them
@@ -361,11 +361,7 @@ class SoftStepper final : public Stepper {
       for (int l = 0; l < lanes::kLanes; ++l) {
         const size_t at = seg.order + first + static_cast<size_t>(l), end = seg.order + seg.count;
         if (ahead && at + 2 * kAhead < end) __builtin_prefetch(&cs.frictions[static_cast<size_t>(order[at + 2 * kAhead])]);
-        if (ahead && at + kAhead < end) {
-          const size_t next = static_cast<size_t>(order[at + kAhead]);
-          if (deferred) cs.prefetchManifold(next);
-          else prefetchRows(rows, cs.frictions[next]);
-        }
+        if (ahead && at + kAhead < end) cs.prefetchManifold(static_cast<size_t>(order[at + kAhead]));
         // A lane not in use reads lane 0's bodies and, with zero rows and masses, writes nothing.
         const bool used = l < g.count;
         const size_t k = static_cast<size_t>(order[used ? at : seg.order + first]);
@@ -446,11 +442,6 @@ class SoftStepper final : public Stepper {
       return size > 0 ? static_cast<size_t>(size) : size_t{1} << 20;
     }();
     return bytes > l2;
-  }
-  static void prefetchRows(const Row* rows, const FrictionDef& f) {
-    const char* p = reinterpret_cast<const char*>(rows + f.firstNormal);
-    const char* end = reinterpret_cast<const char*>(rows + f.row + 3);
-    for (; p < end; p += 64) __builtin_prefetch(p);
   }
 
   // f(group's row lanes, lane, row) for every row of every manifold in the lanes.
