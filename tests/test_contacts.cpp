@@ -4,6 +4,7 @@
 #include "physics/scene_file.h"
 #include "physics/steppers/stepper.h"
 #include "physics/world.h"
+#include "step_inputs.h"
 
 #include <gtest/gtest.h>
 
@@ -412,13 +413,7 @@ TEST(Rows, ContactRowsFormulatedOverOldOnesAreNewOnes) {
   for (const SolverSettings& st : {settingsFor(Algorithm::Soft), settingsFor(Algorithm::A5, a5)}) {
     World w(s.model, st, s.initial);
     for (int k = 0; k < 20; ++k) ASSERT_TRUE(w.step().finite);
-    std::vector<Pose> poses;
-    std::vector<BodyMass> mass;
-    for (size_t i = 0; i < s.model.bodies.size(); ++i) {
-      const Body& body = s.model.bodies[i];
-      poses.push_back(w.state().bodies[i].pose());
-      mass.push_back(body.isStatic ? BodyMass{} : BodyMass{body.invMass, body.invInertia});
-    }
+    const auto [poses, mass] = stepInputs(w);
     ConstraintSet reused, fresh;
     reused.build(s.model, w.manifolds(), poses, mass, st, st.dt, 1.0);
     ASSERT_GE(reused.contacts.size(), 8u) << algorithmName(st.algorithm);

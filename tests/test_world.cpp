@@ -2,6 +2,7 @@
 #include "physics/failure.h"
 #include "physics/scene_file.h"
 #include "physics/world.h"
+#include "step_inputs.h"
 
 #include <gtest/gtest.h>
 
@@ -138,18 +139,25 @@ TEST_P(EveryAlgorithm, Deterministic) {
   }
 }
 
-// Islands (A5 solves each through all its sub-steps before the next): the ground joins nothing,
-// so two stacks and a ball in the air are three islands; and island by island gives the same
-// numbers, bit for bit, as all at once, on a pile (contacts, warm started, contact blocks) and on
-// the ragdoll pile (joints re-formulated between sub-steps, contacts joining the ragdolls).
-TEST(World, IslandsAreSeparateAndSolvingByIslandChangesNothing) {
-  const Scene three = sceneFrom(R"({"bodies": [
+// Two stacks of two boxes on the ground and a sphere at height y: three islands, the ground
+// joining nothing.
+Scene twoStacksAndABall(double y) {
+  return sceneFrom(R"({"bodies": [
       {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [10, 0.5, 10]}, "position": [0, -0.5, 0]},
       {"name": "a0", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 0.5, 0]},
       {"name": "a1", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [0, 1.5, 0]},
       {"name": "b0", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [3, 0.5, 0]},
       {"name": "b1", "shape": {"type": "box", "half_extents": [0.5, 0.5, 0.5]}, "position": [3, 1.5, 0]},
-      {"name": "ball", "shape": {"type": "sphere", "radius": 0.5}, "position": [-3, 5, 0]}]})");
+      {"name": "ball", "shape": {"type": "sphere", "radius": 0.5}, "position": [-3, )" +
+                   std::to_string(y) + R"(, 0]}]})");
+}
+
+// Islands (A5 solves each through all its sub-steps before the next): the ground joins nothing,
+// so two stacks and a ball in the air are three islands; and island by island gives the same
+// numbers, bit for bit, as all at once, on a pile (contacts, warm started, contact blocks) and on
+// the ragdoll pile (joints re-formulated between sub-steps, contacts joining the ragdolls).
+TEST(World, IslandsAreSeparateAndSolvingByIslandChangesNothing) {
+  const Scene three = twoStacksAndABall(5);
   for (const bool on : {true, false}) {
     SolverSettings st = settingsFor(Algorithm::A5);
     st.islands = on;
@@ -183,6 +191,64 @@ TEST(World, IslandsAreSeparateAndSolvingByIslandChangesNothing) {
       ASSERT_EQ(a.lastReport().solver.residual, b.lastReport().solver.residual) << file << " step " << k;
     }
     EXPECT_GT(most, 10) << file;  // many islands solved one by one, not one holding everything
+  }
+}
+
+// A5's island lists are kept from the last build while the manifolds' bodies and point counts
+// are the same (ConstraintSet::findIslands): whatever changes, the lists are those a set built
+// afresh finds. Two stacks and a sphere at rest (three islands), then the same manifolds with a
+// point moved from one to another, without one, and with two of different islands swapped.
+TEST(World, IslandListsKeptOnlyWhileTheManifoldsStay) {
+  const Scene s = twoStacksAndABall(0.5);
+  SolverSettings st = settingsFor(Algorithm::A5);
+  st.islands = true;
+  World w(s.model, st, s.initial);
+  for (int k = 0; k < 30; ++k) ASSERT_TRUE(w.step().finite);
+  const auto [poses, mass] = stepInputs(w);
+  const std::vector<Manifold> settled = w.manifolds();
+  ASSERT_EQ(settled.size(), 5u);  // each box on what is below it, the sphere on the ground
+  // Two four-point manifolds of different stacks: a0 on the ground and b1 on b0.
+  const auto find = [&](const char* a, const char* b) {
+    for (size_t k = 0; k < settled.size(); ++k) {
+      const std::string na = s.model.bodies[static_cast<size_t>(settled[k].a)].name;
+      const std::string nb = s.model.bodies[static_cast<size_t>(settled[k].b)].name;
+      if ((na == a && nb == b) || (na == b && nb == a)) return k;
+    }
+    ADD_FAILURE() << "no manifold of " << a << " and " << b;
+    return size_t{0};
+  };
+  const size_t first = find("a0", "ground"), second = find("b1", "b0"), ball = find("ball", "ground");
+  ASSERT_EQ(settled[first].count, 4);
+  ASSERT_EQ(settled[ball].count, 1);
+  // A point moved from one manifold to another (the sphere's doubled): as many rows and units.
+  std::vector<Manifold> moved = settled, without = settled, swapped = settled;
+  moved[first].count = 3;
+  moved[ball].points[1] = moved[ball].points[0];
+  moved[ball].count = 2;
+  without.erase(without.begin() + static_cast<std::ptrdiff_t>(first));
+  std::swap(swapped[first], swapped[second]);
+  const auto list = [](const IndexRange& r) {
+    std::vector<int> v;
+    for (int k = 0; k < r.count; ++k) v.push_back(r[k]);
+    return v;
+  };
+  ConstraintSet kept;  // built over and over, as World's
+  const double h = st.dt / st.substeps;
+  using Case = std::pair<const char*, const std::vector<Manifold>*>;
+  for (const auto& [what, ms] : {Case{"settled", &settled}, Case{"again", &settled}, Case{"a point moved", &moved},
+                                 Case{"a manifold fewer", &without}, Case{"two swapped", &swapped},
+                                 Case{"settled again", &settled}}) {
+    kept.build(s.model, *ms, poses, mass, st, h, st.kappa);
+    ConstraintSet fresh;
+    fresh.build(s.model, *ms, poses, mass, st, h, st.kappa);
+    ASSERT_EQ(kept.islandCount(), 3) << what;
+    ASSERT_EQ(fresh.islandCount(), 3) << what;
+    for (int k = 0; k < 3; ++k) {
+      const ConstraintPart a = kept.island(k), b = fresh.island(k);
+      EXPECT_EQ(list(a.units), list(b.units)) << what << ", island " << k;
+      EXPECT_EQ(list(a.rows), list(b.rows)) << what << ", island " << k;
+      EXPECT_EQ(list(a.bodies), list(b.bodies)) << what << ", island " << k;
+    }
   }
 }
 

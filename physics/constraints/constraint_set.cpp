@@ -321,8 +321,25 @@ void ConstraintSet::findIslands(bool split) {
   // Islands off: one island, the whole step (island() gives whole()).
   if (!split) {
     islands_.assign(2, Island{});
+    lastIslandKey_.clear();
     return;
   }
+  // The lists are a function of the key alone: a step whose manifolds have the bodies and point
+  // counts of the last (a settled scene) keeps them rather than finding them again, on the
+  // calling thread alone (docs/benchmarks.md, "A5's islands kept").
+  islandKey_.resize(frictions.size() + 4);
+  islandKey_[0] = static_cast<uint64_t>(unitOrder_) | uint64_t{contactBlocks_} << 8 | uint64_t{stableBlocks_} << 9 |
+                  uint64_t{colourStart.empty()} << 10;
+  islandKey_[1] = reinterpret_cast<uintptr_t>(model_);
+  islandKey_[2] = uint64_t{units.size()} << 32 | rows.size();
+  islandKey_[3] = uint64_t{joints.size()} << 32 | model_->bodies.size();
+  for (size_t k = 0; k < frictions.size(); ++k) {
+    const FrictionDef& f = frictions[k];
+    islandKey_[k + 4] = uint64_t{static_cast<uint32_t>(f.a)} << 36 | uint64_t{static_cast<uint32_t>(f.b)} << 8 |
+                        static_cast<uint64_t>(f.normalCount);
+  }
+  if (islandKey_ == lastIslandKey_) return;
+  islandKey_.swap(lastIslandKey_);
   const std::vector<Body>& bodies = model_->bodies;
   const int nb = static_cast<int>(bodies.size());
   auto dynamic = [&](int i) { return !bodies[static_cast<size_t>(i)].isStatic; };

@@ -199,6 +199,10 @@ class ConstraintSet {
   std::vector<Island> islands_, cursor_;  // islands_: and one past the last, for the ends
   std::vector<int> islandUnits_, islandRows_, islandBodies_, islandJoints_, islandManifolds_;
   std::vector<int> parent_, islandOf_;  // union-find over bodies; then each root's island
+  // What the islands follow from (the settings that lay out units and rows, the model and its
+  // body count, the joints, each manifold's bodies and points): this step's and that of the step
+  // that found the lists. A model's bodies (which are static) do not change under a set.
+  std::vector<uint64_t> islandKey_, lastIslandKey_;
 };
 
 }  // namespace substep

@@ -52,7 +52,7 @@ class HavokActualStepper final : public Stepper {
     // (A step that is one island, a pyramid, gets the whole without index lists from island(0).)
     // On more than one thread the islands are shared out: an island's rows and moving bodies are
     // its own, and static ones are only read (solves write back moving bodies alone).
-    WorkerPool& pool = c.pool ? *c.pool : WorkerPool::callerOnly();
+    WorkerPool& pool = c.workers();
     parts_.resize(static_cast<size_t>(pool.threads()));
     for (PartScratch& s : parts_) s.residual = 0;
     if (stableOnly) {

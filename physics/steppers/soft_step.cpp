@@ -82,7 +82,7 @@ class SoftStepper final : public Stepper {
     kind_.resize(cs.rows.size());
     softOf_.resize(cs.rows.size());
     c0_.resize(cs.rows.size());
-    pool(c).forRange(classified, 1024, [&](size_t first, size_t last, int) {
+    c.workers().forRange(classified, 1024, [&](size_t first, size_t last, int) {
       for (size_t k = first; k < last; ++k) {
         const Row& r = cs.rows[k];
         kind_[k] = Kind::Joint;
@@ -94,7 +94,7 @@ class SoftStepper final : public Stepper {
       }
     });
     if (!lanes_)
-      pool(c).forRange(cs.contacts.size(), 1024, [&](size_t first, size_t last, int) {
+      c.workers().forRange(cs.contacts.size(), 1024, [&](size_t first, size_t last, int) {
         for (size_t q = first; q < last; ++q) {
           const ContactDef& ct = cs.contacts[q];
           const size_t k = static_cast<size_t>(ct.row);
@@ -221,7 +221,7 @@ class SoftStepper final : public Stepper {
     phaseCount_ = order == ContactOrder::Manifold ? 1 : 2;
     phases_[0] = order == ContactOrder::Manifold ? Phase::Both : c.settings->warmStart ? Phase::Friction : Phase::Normals;
     phases_[1] = c.settings->warmStart ? Phase::Normals : Phase::Friction;
-    change_.assign(static_cast<size_t>(pool(c).threads()) * kPad, 0.0);
+    change_.assign(static_cast<size_t>(c.workers().threads()) * kPad, 0.0);
     if (lanes_) buildLanes(c);
   }
 
@@ -410,7 +410,7 @@ class SoftStepper final : public Stepper {
     };
     // Every run's groups in one job: a run is a few groups (three on the 100-level pyramid),
     // less than one block, so a job a run would leave them all to the calling thread.
-    pool(c).forRange(groups, 16, [&](size_t b, size_t e, int) {
+    c.workers().forRange(groups, 16, [&](size_t b, size_t e, int) {
       auto seg = std::upper_bound(segments_.begin(), segments_.end(), b,
                                   [](size_t gi, const Segment& s) { return gi < s.last; });
       for (size_t gi = b; gi < e; ++gi) {
@@ -449,7 +449,7 @@ class SoftStepper final : public Stepper {
   void eachLaneRow(StepContext& c, F f) {
     Row* rows = c.constraints->rows.data();
     const std::vector<FrictionDef>& frictions = c.constraints->frictions;
-    pool(c).forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
+    c.workers().forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
       for (size_t gi = b; gi < e; ++gi) {
         lanes::Group& g = groups_[gi];
         for (int l = 0; l < g.count; ++l) {
@@ -478,7 +478,7 @@ class SoftStepper final : public Stepper {
   void lanesToImpulses(StepContext& c) {
     ConstraintSet& cs = *c.constraints;
     cs.impulses.resize(cs.frictions.size());
-    pool(c).forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
+    c.workers().forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
       for (size_t gi = b; gi < e; ++gi) {
         const lanes::Group& g = groups_[gi];
         for (int l = 0; l < g.count; ++l) {
@@ -516,8 +516,8 @@ class SoftStepper final : public Stepper {
     for (const Segment& seg : segments_) {
       if (seg.serial) f(seg.first, seg.last, 0);
       else
-        pool(c).forRange(seg.last - seg.first, kManifoldGrain / lanes::kLanes,
-                         [&](size_t b, size_t e, int t) { f(seg.first + b, seg.first + e, t); });
+        c.workers().forRange(seg.last - seg.first, kManifoldGrain / lanes::kLanes,
+                             [&](size_t b, size_t e, int t) { f(seg.first + b, seg.first + e, t); });
     }
   }
   static double* vel(std::vector<Vec3>& v) { return v.data()->data(); }
@@ -528,13 +528,11 @@ class SoftStepper final : public Stepper {
     return c.model->bodies[static_cast<size_t>(a)].isStatic || c.model->bodies[static_cast<size_t>(b)].isStatic;
   }
 
-  // The step's threads; a context built without them (by hand, in a test) steps on one.
-  static WorkerPool& pool(StepContext& c) { return c.pool ? *c.pool : WorkerPool::callerOnly(); }
   // f(first, last) over the bodies in blocks on the threads, for work that writes only each
   // body's own entries.
   template <class F>
   static void eachBodyBlock(StepContext& c, F f) {
-    pool(c).forRange(c.bodies(), kBodyBlock, [&](size_t first, size_t last, int) { f(first, last); });
+    c.workers().forRange(c.bodies(), kBodyBlock, [&](size_t first, size_t last, int) { f(first, last); });
   }
   static ConstraintPart bodyPart(size_t first, size_t last) {
     return ConstraintPart{{}, {}, IndexRange{nullptr, static_cast<int>(first), static_cast<int>(last - first)}, {}};
@@ -549,7 +547,7 @@ class SoftStepper final : public Stepper {
     if (start.empty()) {  // not coloured: in the step's order
       const ConstraintSet& cs = *c.constraints;
       const int islands = cs.islandCount();
-      if (islands <= 1 || pool(c).threads() == 1) {
+      if (islands <= 1 || c.workers().threads() == 1) {
         for (size_t k = 0; k < cs.frictions.size(); ++k) f(k, change_[0]);
         return;
       }
@@ -559,7 +557,7 @@ class SoftStepper final : public Stepper {
       // of neighbouring islands on different threads share the cache lines of their boundary
       // bodies' velocities, which cost more than the sweep saved with blocks of 32.
       const size_t grain = std::max<size_t>(1, static_cast<size_t>(islands) * kIslandGrain / std::max<size_t>(1, cs.frictions.size()));
-      pool(c).forRange(static_cast<size_t>(islands), grain, [&](size_t b, size_t e, int t) {
+      c.workers().forRange(static_cast<size_t>(islands), grain, [&](size_t b, size_t e, int t) {
         onBlock(t, [&](double& change) {
           for (size_t i = b; i < e; ++i) {
             const IndexRange list = cs.islandManifolds(static_cast<int>(i));
@@ -582,7 +580,7 @@ class SoftStepper final : public Stepper {
       };
       const size_t count = static_cast<size_t>(last - first);
       if (col == ConstraintSet::kColours) inOrder(0, count, 0);  // the overflow: in order, on this thread
-      else pool(c).forRange(count, kManifoldGrain, inOrder);
+      else c.workers().forRange(count, kManifoldGrain, inOrder);
     }
   }
 

@@ -58,6 +58,8 @@ struct StepContext {
   StepStats stats;
   WorkerPool* pool = nullptr;      // the step's threads
 
+  // The step's threads; a context built without them (by hand, in a test) steps on one.
+  WorkerPool& workers() const { return pool ? *pool : WorkerPool::callerOnly(); }
   double h() const { return settings->dt; }
   int n() const { return settings->substeps; }
   size_t bodies() const { return mass.size(); }
