@@ -444,20 +444,24 @@ class SoftStepper final : public Stepper {
     return bytes > l2;
   }
 
-  // f(group's row lanes, lane, row) for every row of every manifold in the lanes.
+  // f(group, lane, its manifold's definition) for every lane in use, the groups on the threads.
   template <class F>
-  void eachLaneRow(StepContext& c, F f) {
-    Row* rows = c.constraints->rows.data();
+  void eachLane(StepContext& c, F f) {
     const std::vector<FrictionDef>& frictions = c.constraints->frictions;
     c.workers().forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
       for (size_t gi = b; gi < e; ++gi) {
         lanes::Group& g = groups_[gi];
-        for (int l = 0; l < g.count; ++l) {
-          const FrictionDef& fd = frictions[static_cast<size_t>(g.manifold[l])];
-          for (int q = 0; q < fd.normalCount; ++q) f(g.normal[q], l, rows[fd.firstNormal + q]);
-          for (int i = 0; i < 3; ++i) f(g.friction[i], l, rows[fd.row + i]);
-        }
+        for (int l = 0; l < g.count; ++l) f(g, l, frictions[static_cast<size_t>(g.manifold[l])]);
       }
+    });
+  }
+  // f(group's row lanes, lane, row) for every row of every manifold in the lanes.
+  template <class F>
+  void eachLaneRow(StepContext& c, F f) {
+    Row* rows = c.constraints->rows.data();
+    eachLane(c, [&](lanes::Group& g, int l, const FrictionDef& fd) {
+      for (int q = 0; q < fd.normalCount; ++q) f(g.normal[q], l, rows[fd.firstNormal + q]);
+      for (int i = 0; i < 3; ++i) f(g.friction[i], l, rows[fd.row + i]);
     });
   }
   void lanesFromRows(StepContext& c) {
@@ -478,20 +482,13 @@ class SoftStepper final : public Stepper {
   void lanesToImpulses(StepContext& c) {
     ConstraintSet& cs = *c.constraints;
     cs.impulses.resize(cs.frictions.size());
-    c.workers().forRange(groups_.size(), 64, [&](size_t b, size_t e, int) {
-      for (size_t gi = b; gi < e; ++gi) {
-        const lanes::Group& g = groups_[gi];
-        for (int l = 0; l < g.count; ++l) {
-          const size_t k = static_cast<size_t>(g.manifold[l]);
-          const FrictionDef& fd = cs.frictions[k];
-          ConstraintSet::ManifoldImpulses& to = cs.impulses[k];
-          for (int q = 0; q < fd.normalCount; ++q) to.normal[q] = g.normal[q].lambda.x[l];
-          const lanes::FrictionLanes* f = g.friction;
-          to.tangentInB = frictionImpulseInB(fd.qB, f[0].lambda.x[l], laneVector(f[0].lin, l), f[1].lambda.x[l],
-                                             laneVector(f[1].lin, l));
-          to.twist = f[2].lambda.x[l];
-        }
-      }
+    eachLane(c, [&](const lanes::Group& g, int l, const FrictionDef& fd) {
+      ConstraintSet::ManifoldImpulses& to = cs.impulses[static_cast<size_t>(g.manifold[l])];
+      for (int q = 0; q < fd.normalCount; ++q) to.normal[q] = g.normal[q].lambda.x[l];
+      const lanes::FrictionLanes* f = g.friction;
+      to.tangentInB = frictionImpulseInB(fd.qB, f[0].lambda.x[l], laneVector(f[0].lin, l), f[1].lambda.x[l],
+                                         laneVector(f[1].lin, l));
+      to.twist = f[2].lambda.x[l];
     });
   }
   static Vec3 laneVector(const lanes::Doubles* v, int l) { return Vec3(v[0].x[l], v[1].x[l], v[2].x[l]); }
