@@ -5,11 +5,15 @@
 #include "physics/scene_file.h"
 #include "physics/state_hash.h"
 #include "physics/steppers/soft_lanes.h"
+#include "physics/steppers/soft_lanes_fill.h"
 #include "physics/world.h"
+#include "step_inputs.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstring>
 #include <string>
 #include <utility>
 #include <vector>
@@ -168,4 +172,169 @@ TEST(Lanes, TheKernelsAgree) {
   lanes::useKernel(nullptr);
   EXPECT_STREQ(lanes::kernel().name, lanes::avx512Supported() ? "avx512" : lanes::avx2Supported() ? "avx2" : "sse2");
   if (compared == 0) GTEST_SKIP() << "this processor has neither AVX2 nor AVX-512: only the baseline kernel ran";
+}
+
+namespace {
+
+// Boxes on a 45° ramp, on the ground and on one another, and spheres: normals on both sides of
+// tangentBasis's switch (|n.x| = 1/√3), one to four points a manifold, and points apart.
+Scene rampScene() {
+  std::string json = R"({"bodies": [
+      {"name": "ground", "static": true, "shape": {"type": "box", "half_extents": [10, 0.5, 10]}, "position": [0, -0.5, 0]},
+      {"name": "ramp", "static": true, "shape": {"type": "box", "half_extents": [3, 0.5, 3]}, "position": [-5, 2, 0],
+       "orientation": [0.9238795, 0, 0, 0.3826834]})";
+  for (int i = 0; i < 12; ++i) {
+    const double x = -6.2 + 0.9 * (i % 3), z = -1.5 + 1.2 * (i / 3);
+    json += R"(, {"name": "r)" + std::to_string(i) + R"(", "shape": {"type": "box", "half_extents": [0.3, 0.2, 0.3]}, "position": [)" +
+            std::to_string(x) + ", " + std::to_string(2.9 - (x + 5) + 0.05 * i) + ", " + std::to_string(z) +
+            R"(], "orientation": [0.9238795, 0, 0, 0.3826834]})";
+  }
+  for (int i = 0; i < 10; ++i) {  // a leaning column on the ground
+    const std::string shape = i % 3 == 2 ? "{\"type\": \"sphere\", \"radius\": 0.4}"
+                                         : "{\"type\": \"box\", \"half_extents\": [0.4, 0.4, 0.4]}";
+    json += ", {\"name\": \"g" + std::to_string(i) + "\", \"shape\": " + shape + ", \"position\": [" +
+            std::to_string(1.0 + 0.3 * (i % 2)) + ", " + std::to_string(0.42 + 0.85 * i) + ", 0], \"orientation\": [" +
+            std::to_string(std::cos(0.1 * i)) + ", 0, " + std::to_string(std::sin(0.1 * i)) + ", 0]}";
+  }
+  json += "]}";
+  return parseScene(json, "<test>", ".");
+}
+
+bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// Lane l of row lanes `to` against row r (null: a zero row, +0 everywhere), the c0 or μ beside.
+void expectLane(const lanes::RowLanes& to, int l, const Row* r, const std::string& what) {
+  const auto expect = [&](double lane, double row, const char* field) {
+    EXPECT_TRUE(sameBits(lane, row)) << what << " " << field << ": lanes " << lane << ", rows " << row;
+  };
+  for (int i = 0; i < 3; ++i) {
+    expect(to.lin[i].x[l], r ? r->lin[i] : 0.0, "lin");
+    expect(to.angA[i].x[l], r ? r->angA[i] : 0.0, "angA");
+    expect(to.angB[i].x[l], r ? r->angB[i] : 0.0, "angB");
+  }
+  expect(to.effMass.x[l], r ? r->effMass : 0.0, "effMass");
+  expect(to.lambda.x[l], r ? r->lambda : 0.0, "lambda");
+  EXPECT_EQ(to.pushed.x[l], 0) << what;
+}
+
+// Group [first, first + 8) of cs's manifolds formulated by kernel k, as the fill does it, against
+// formulateManifold's rows bit for bit (lanes not in use and held points: zero rows).
+void expectGroupAsRows(const ConstraintSet& cs, const StepInputs& in, const lanes::Kernel& k, size_t first, double h,
+                       const std::string& context) {
+  lanes::ManifoldLanes definitions;
+  lanes::Group g;
+  g.count = static_cast<int>(std::min<size_t>(lanes::kLanes, cs.frictions.size() - first));
+  const auto manifold = [&](int l) { return first + (l < g.count ? static_cast<size_t>(l) : 0); };
+  for (int l = 0; l < lanes::kLanes; ++l) {
+    const bool used = l < g.count;
+    const FrictionDef& fd = cs.frictions[manifold(l)];
+    const BodyMass& A = in.mass[static_cast<size_t>(fd.a)];
+    const BodyMass& B = in.mass[static_cast<size_t>(fd.b)];
+    g.mA.x[l] = used ? A.invMass : 0;
+    g.mB.x[l] = used ? B.invMass : 0;
+    for (int i = 0; i < 3; ++i) {
+      g.invIA[i].x[l] = used ? A.invI[i] : 0;
+      g.invIB[i].x[l] = used ? B.invI[i] : 0;
+    }
+    lanes::gatherManifold(cs, manifold(l), l, definitions);
+  }
+  k.formulate(definitions, g, lanes::formulation(cs, h));
+  for (int l = 0; l < lanes::kLanes; ++l) {
+    const bool used = l < g.count;
+    const FrictionDef& fd = cs.frictions[manifold(l)];
+    Row rows[lanes::kMaxNormals + 3];
+    FrictionCoupling coupling;
+    cs.formulateManifold(manifold(l), rows, coupling);
+    const std::string what = context + ", " + k.name + ", manifold " + std::to_string(manifold(l)) +
+                             (used ? "" : " (lane not in use)");
+    for (int q = 0; q < lanes::kMaxNormals; ++q) {
+      const Row* r = used && q < fd.normalCount && rows[q].hi != 0 ? &rows[q] : nullptr;
+      expectLane(g.normal[q], l, r, what + ", point " + std::to_string(q));
+      EXPECT_TRUE(sameBits(g.normal[q].c0.x[l], r ? -r->bias * h : 0.0)) << what << ", point " << q << " c0";
+    }
+    for (int i = 0; i < 3; ++i) {
+      const Row* r = used ? &rows[fd.normalCount + i] : nullptr;
+      expectLane(g.friction[i], l, r, what + ", friction " + std::to_string(i));
+      EXPECT_TRUE(sameBits(g.friction[i].mu.x[l], r ? r->hi : 0.0)) << what << ", friction " << i << " mu";
+    }
+    EXPECT_TRUE(sameBits(g.g10.x[l], used ? coupling.g10 : 0.0)) << what << " g10";
+    EXPECT_TRUE(sameBits(g.g20.x[l], used ? coupling.g20 : 0.0)) << what << " g20";
+    EXPECT_TRUE(sameBits(g.g21.x[l], used ? coupling.g21 : 0.0)) << what << " g21";
+  }
+}
+
+}  // namespace
+
+// The kernels formulate a group's manifolds (world contact frame, warm) as the set's own
+// formulateManifold and finishRow do, to the last bit: J̌, m_eff, the warm-start λ (the tangential
+// one carried onto this step's tangents), C⁰, μ and the friction couplings; lanes not in use, points
+// a lane lacks and, without speculative contacts, points apart (which hold nothing: λ in [0, 0])
+// are zero rows.
+TEST(Lanes, TheKernelsFormulateAsTheRowsAre) {
+  const Scene s = rampScene();
+  std::vector<const lanes::Kernel*> kernels = {&lanes::sse2Kernel()};
+  if (lanes::avx2Supported()) kernels.push_back(&lanes::avx2Kernel());
+  if (lanes::avx512Supported()) kernels.push_back(&lanes::avx512Kernel());
+  for (bool speculative : {true, false}) {
+    SolverOverrides o = s.solver;
+    o.set(&SolverSettings::algorithm, Algorithm::Soft);
+    o.set(&SolverSettings::speculative, speculative);
+    const SolverSettings st = resolve(o);
+    ASSERT_TRUE(st.lanes && st.warmStart);
+    ASSERT_EQ(st.contactFrame, ContactFrame::World);
+    World w(s.model, st, s.initial);
+    const double h = st.dt / st.substeps;
+    int steep = 0, apart = 0, counts[lanes::kMaxNormals + 1] = {};
+    for (int step = 0; step < 45; ++step) {
+      w.step();
+      const ConstraintSet& cs = w.constraints();
+      ASSERT_TRUE(cs.contactRowsDeferred());
+      const StepInputs in = stepInputs(w);  // the masses as the world's steppers have them (all awake)
+      const std::string context = std::string(speculative ? "" : "not speculative, ") + "step " + std::to_string(step + 1);
+      for (const lanes::Kernel* k : kernels)
+        for (size_t first = 0; first < cs.frictions.size(); first += lanes::kLanes) {
+          expectGroupAsRows(cs, in, *k, first, h, context);
+          if (HasFailure()) return;
+        }
+      for (size_t m = 0; m < cs.frictions.size(); ++m) {
+        const FrictionDef& fd = cs.frictions[m];
+        steep += std::abs(fd.worldN.x()) >= 0.57735;
+        ++counts[fd.normalCount];
+        Row rows[lanes::kMaxNormals + 3];
+        FrictionCoupling coupling;
+        cs.formulateManifold(m, rows, coupling);
+        for (int q = 0; q < fd.normalCount; ++q) apart += rows[q].bias < 0;
+      }
+    }
+    // The cases the test is for were there.
+    EXPECT_GT(steep, 0) << "no normal past tangentBasis's switch";
+    EXPECT_GT(apart, 0) << "no point apart";
+    EXPECT_GT(counts[1], 0) << "no one-point manifold";
+    EXPECT_GT(counts[4], 0) << "no four-point manifold";
+  }
+}
+
+// Without speculative contacts a point apart at the step's start holds nothing that step (its λ
+// bounded to [0, 0]); in the lanes, which bound every normal to [0, ∞), it is a zero row. On the
+// ramp the lanes give the one-manifold solve's trajectory, formulating in lanes (world frame) or
+// each manifold on its own (the bodies' frame), warm and cold.
+TEST(Lanes, PointsApartHoldNothingWithoutSpeculativeContacts) {
+  const Scene s = rampScene();
+  for (ContactFrame frame : {ContactFrame::World, ContactFrame::Bodies})
+    for (bool warm : {true, false}) {
+      const auto settings = [&](bool lanes) {
+        SolverOverrides o = s.solver;
+        o.set(&SolverSettings::algorithm, Algorithm::Soft);
+        o.set(&SolverSettings::speculative, false);
+        o.set(&SolverSettings::contactFrame, frame);
+        o.set(&SolverSettings::lanes, lanes);
+        o.set(&SolverSettings::warmStart, warm);
+        return resolve(o);
+      };
+      const std::string what = std::string(frame == ContactFrame::World ? "world" : "bodies") + (warm ? " warm" : " cold");
+      const Stepped one = trajectory(s, settings(false), 90), eight = trajectory(s, settings(true), 90);
+      ASSERT_GT(eight.laneRuns, 0) << what;
+      ASSERT_EQ(one.hashes.size(), eight.hashes.size()) << what;
+      for (size_t k = 0; k < one.hashes.size(); ++k) ASSERT_EQ(one.hashes[k], eight.hashes[k]) << what << ", step " << k + 1;
+    }
 }

@@ -88,6 +88,14 @@ class ConstraintSet {
   // how many bytes that is for all the manifolds.
   void prefetchManifold(size_t k) const;
   size_t manifoldBytes() const;
+  // What formulateManifold reads besides manifold k's FrictionDef, for a formulation elsewhere (the
+  // soft step's lanes): its points' definitions, the bodies' frames at the build's poses, the time
+  // step and slop β is for, and whether a point apart is speculative.
+  const ContactDef* manifoldContacts(size_t k) const { return &contacts[static_cast<size_t>(manifoldPoint_[k])]; }
+  const Frame& frame(int body) const { return frames_[static_cast<size_t>(body)]; }
+  double formulationStep() const { return h_; }
+  double slop() const { return slop_; }
+  bool speculativeContacts() const { return speculative_; }
   struct ManifoldImpulses {
     double normal[kMaxManifoldPoints];  // each point's λ [N s]
     Vec3 tangentInB;                    // the friction impulse in B's frame (frictionImpulseInB) [N s]

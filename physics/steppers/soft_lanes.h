@@ -12,7 +12,8 @@
 // once a step with the rows' λ (SoftStepper::buildLanes), solved every sweep, the impulses written
 // back to the rows when the step ends (with joints or cold, each sub-step). Warm and without
 // joints or restitution, no contact row is stored: each manifold's are formulated as its lane is
-// filled, and its impulses go to ConstraintSet::impulses (ConstraintSet::askDeferredContactRows).
+// filled (in the world contact frame by the kernel, eight at once: Kernel::formulate), and its
+// impulses go to ConstraintSet::impulses (ConstraintSet::askDeferredContactRows).
 //
 // No Eigen here: the kernel is compiled three times, for AVX-512, for AVX2 and for the baseline
 // x86-64 (SSE2), and the widest the processor runs is taken at run time. Inline functions shared
@@ -64,6 +65,31 @@ struct Group {
   FrictionLanes friction[3];  // t1, t2, twist
 };
 
+// What formulating a group's manifolds reads, a lane each, in the world contact frame
+// (ContactFrame::World: the normals and arms the narrowphase found): the bodies' frames and the
+// points' and the friction's definitions (ConstraintSet::formulateManifold's, gathered by
+// gatherManifold, soft_lanes_fill.h). A point a lane does not have is zero and gives a zero row.
+struct ManifoldLanes {
+  int normals[kLanes] = {};  // each lane's points (0 in a lane not in use)
+  Doubles pA[3], RA[9], pB[3], RB[9];  // the bodies' frames: position [m], rotation (column-major)
+  struct Point {
+    Doubles localA[3], localB[3];  // on A in A's frame, on B in B's [m]
+    Doubles n[3], armA[3], armB[3];  // world normal (B towards A), arms from the centres [m]
+    Doubles lastLambda;  // warm start [N s]
+  } point[kMaxNormals];
+  Doubles n[3], armA[3], armB[3];  // friction: the manifold's normal, arms to the points' centroid
+  Doubles lastImpulse[3];  // tangential warm start, in B's frame [N s]
+  Doubles lastTwist;  // [N m s]
+  Doubles mu, radius;  // friction coefficient; the points' mean distance from the centroid [m]
+};
+// The formulation's constants: the time step the rows' β is for (ConstraintSet::build's) and the
+// sub-step C⁰ = -β h is taken over (both h/n here) [s], the allowed penetration [m], and whether
+// a point apart is speculative (else it holds nothing: λ 0).
+struct Formulation {
+  double hBuild, hSub, slop;
+  bool speculative;
+};
+
 // A sweep's pass: the solve (soft, with position feedback) or the relax (rigid, none).
 struct Pass {
   bool useBias;
@@ -80,6 +106,10 @@ struct Kernel {
                   const Pass& pass, bool measure);
   // The warm start: each row's λ applied (v̌ += M̌⁻¹J̌ᵀλ), groups [first, last) in order.
   void (*warmStart)(const Group* groups, size_t first, size_t last, double* v, double* w);
+  // The group's rows, C⁰, μ and couplings formulated from `in` as formulateManifold and finishRow
+  // make them (scale 1), and λ warm: every number the same to the last bit. Reads the group's
+  // count and inverse masses; lanes not in use, and points a lane does not have, are zero rows.
+  void (*formulate)(const ManifoldLanes& in, Group& g, const Formulation& f);
   const char* name;  // "avx512", "avx2" or "sse2"
 };
 

@@ -26,6 +26,7 @@
 // a run's groups go to the threads. Without the lanes (or in a split contact order) one manifold
 // at a time, uncoloured the islands to the threads island by island: the same trajectory again.
 #include "physics/steppers/soft_lanes.h"
+#include "physics/steppers/soft_lanes_fill.h"
 #include "physics/steppers/stepper.h"
 
 #include <algorithm>
@@ -349,11 +350,18 @@ class SoftStepper final : public Stepper {
     groups_.resize(groups);
     const double h = c.h() / c.n();
     const bool deferred = cs.contactRowsDeferred();
+    // Deferred in the world contact frame (the soft step's default), the kernel formulates the
+    // group's manifolds side by side, from their definitions gathered lane by lane; in the bodies'
+    // frame each lane's manifold is formulated on its own (formulateManifold) and its rows copied in.
+    const bool inLanes = deferred && c.settings->contactFrame == ContactFrame::World;
+    const lanes::Formulation formulation = lanes::formulation(cs, h);
+    const lanes::Kernel& kernel = lanes::kernel();
     const bool ahead = outgrowsL2(cs.manifoldBytes());
     const auto fill = [&](const Segment& seg, size_t gi) {
       lanes::Group& g = groups_[gi];
       Row formulated[lanes::kMaxNormals + 3];  // deferred: a lane's manifold's rows, as build() would store them
       FrictionCoupling coupling;
+      lanes::ManifoldLanes definitions;  // inLanes: what the kernel formulates from
       const size_t per = seg.serial ? 1 : lanes::kLanes;
       const size_t first = (gi - seg.first) * per;
       g.count = static_cast<int>(std::min(per, seg.count - first));
@@ -369,33 +377,40 @@ class SoftStepper final : public Stepper {
         g.manifold[l] = static_cast<int>(k);
         g.a[l] = f.a;
         g.b[l] = f.b;
-        if (deferred && used) cs.formulateManifold(k, formulated, coupling);
-        const Row* normalRows = deferred ? formulated : &rows[f.firstNormal];
-        const Row* frictionRows = deferred ? formulated + f.normalCount : &rows[f.row];
-        const Row& fr = frictionRows[0];
         const BodyMass& A = c.mass[static_cast<size_t>(f.a)];
         const BodyMass& B = c.mass[static_cast<size_t>(f.b)];
-        // The rows' M̌⁻¹J̌ᵀ are the masses times J̌ (scale 1): checked where asserts run.
-        assert(!used || (fr.mA == A.invMass && fr.mB == B.invMass && fr.mAngA == A.invI.cwiseProduct(fr.angA)));
-        g.mA.x[l] = used ? fr.mA : 0;
-        g.mB.x[l] = used ? fr.mB : 0;
-        for (int i = 0; i < 3; ++i) {
-          g.invIA[i].x[l] = used ? A.invI[i] : 0;
-          g.invIB[i].x[l] = used ? B.invI[i] : 0;
-        }
         const Softness& s = soft_[onStatic(c, f.a, f.b) ? kStaticSoft : kContactSoft];
         g.massScale.x[l] = s.massScale;
         g.biasRate.x[l] = s.biasRate;
         g.impulseScale.x[l] = s.impulseScale;
+        // The rows' M̌⁻¹J̌ᵀ are the masses times J̌ (finishRow's scale is 1 here).
+        g.mA.x[l] = used ? A.invMass : 0;
+        g.mB.x[l] = used ? B.invMass : 0;
+        for (int i = 0; i < 3; ++i) {
+          g.invIA[i].x[l] = used ? A.invI[i] : 0;
+          g.invIB[i].x[l] = used ? B.invI[i] : 0;
+        }
+        const int normals = used ? f.normalCount : 0;
+        g.normals = std::max(g.normals, normals);
+        if (inLanes) {
+          lanes::gatherManifold(cs, k, l, definitions);  // a lane not in use: lane 0's, formulated to zero rows
+          continue;
+        }
+        if (deferred && used) cs.formulateManifold(k, formulated, coupling);
+        const Row* normalRows = deferred ? formulated : &rows[f.firstNormal];
+        const Row* frictionRows = deferred ? formulated + f.normalCount : &rows[f.row];
+        // (The masses above: checked where asserts run.)
+        assert(!used || (frictionRows[0].mA == A.invMass && frictionRows[0].mB == B.invMass &&
+                         frictionRows[0].mAngA == A.invI.cwiseProduct(frictionRows[0].angA)));
         const FrictionCoupling& cp =
             deferred ? coupling : cs.couplings[static_cast<size_t>(cs.units[static_cast<size_t>(f.frictionUnit)].block)];
         g.g10.x[l] = used ? cp.g10 : 0;
         g.g20.x[l] = used ? cp.g20 : 0;
         g.g21.x[l] = used ? cp.g21 : 0;
-        const int normals = used ? f.normalCount : 0;
-        g.normals = std::max(g.normals, normals);
         for (int q = 0; q < lanes::kMaxNormals; ++q) {
-          const Row* r = q < normals ? &normalRows[q] : nullptr;
+          // A point held (λ in [0, 0]: apart without speculative points) is a zero row: the lanes
+          // bound every normal to [0, ∞).
+          const Row* r = q < normals && normalRows[q].hi != 0 ? &normalRows[q] : nullptr;
           assert(!r || (r->lo == 0 && std::isinf(r->hi)));
           laneRow(g.normal[q], l, r);
           g.normal[q].c0.x[l] = r ? contactC0(*r, h) : 0;
@@ -407,6 +422,7 @@ class SoftStepper final : public Stepper {
           g.friction[i].mu.x[l] = r ? r->hi : 0;
         }
       }
+      if (inLanes) kernel.formulate(definitions, g, formulation);
     };
     // Every run's groups in one job: a run is a few groups (three on the 100-level pyramid),
     // less than one block, so a job a run would leave them all to the calling thread.
@@ -525,12 +541,6 @@ class SoftStepper final : public Stepper {
     return c.model->bodies[static_cast<size_t>(a)].isStatic || c.model->bodies[static_cast<size_t>(b)].isStatic;
   }
 
-  // f(first, last) over the bodies in blocks on the threads, for work that writes only each
-  // body's own entries.
-  template <class F>
-  static void eachBodyBlock(StepContext& c, F f) {
-    c.workers().forRange(c.bodies(), kBodyBlock, [&](size_t first, size_t last, int) { f(first, last); });
-  }
   static ConstraintPart bodyPart(size_t first, size_t last) {
     return ConstraintPart{{}, {}, IndexRange{nullptr, static_cast<int>(first), static_cast<int>(last - first)}, {}};
   }

@@ -408,7 +408,7 @@ namespace {
 // coordinates from its own velocities alone.
 template <class F>
 void eachMovingBody(StepContext& c, F f) {
-  c.workers().forRange(c.bodies(), kBodyBlock, [&](size_t first, size_t last, int) {
+  eachBodyBlock(c, [&](size_t first, size_t last) {
     for (size_t i = first; i < last; ++i)
       if (!c.model->bodies[i].isStatic) f(i);
   });

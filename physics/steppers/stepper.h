@@ -65,6 +65,13 @@ struct StepContext {
   size_t bodies() const { return mass.size(); }
 };
 
+// f(first, last) over the step's bodies in blocks on its threads, for work that writes only each
+// body's own entries.
+template <class F>
+void eachBodyBlock(StepContext& c, F f) {
+  c.workers().forRange(c.bodies(), kBodyBlock, [&](size_t first, size_t last, int) { f(first, last); });
+}
+
 class Stepper {
  public:
   virtual ~Stepper() = default;

@@ -1,0 +1,17 @@
+// What the soft step's lanes formulate their manifolds from (soft_lanes.h, ManifoldLanes): the
+// one piece of the fill that reads the constraint set's definitions, here so that a test can
+// formulate a group as the step does and compare it with the set's own rows.
+#pragma once
+
+#include "physics/constraints/constraint_set.h"
+#include "physics/steppers/soft_lanes.h"
+
+namespace substep::lanes {
+
+// Lane l of `in` from manifold k of cs, contacts in the world frame (ContactFrame::World), warm
+// started (the set formulates its rows in lanes only then): everything formulateManifold(k) reads.
+void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in);
+// The formulation constants of cs's last build, for sub-step hSub.
+Formulation formulation(const ConstraintSet& cs, double hSub);
+
+}  // namespace substep::lanes
