@@ -6,6 +6,9 @@ namespace {
 void put(Doubles* to, int l, const Vec3& v) {
   for (int i = 0; i < 3; ++i) to[i].x[l] = v[i];
 }
+void putZero(Doubles* to, int l) {
+  for (int i = 0; i < 3; ++i) to[i].x[l] = 0;
+}
 }  // namespace
 
 void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in) {
@@ -20,15 +23,20 @@ void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in)
   }
   const ContactDef* c = cs.manifoldContacts(k);
   in.normals[l] = f.normalCount;
-  for (int q = 0; q < kMaxNormals; ++q) {
+  for (int q = 0; q < f.normalCount; ++q) {
     ManifoldLanes::Point& p = in.point[q];
-    const bool has = q < f.normalCount;
-    put(p.localA, l, has ? c[q].localA : Vec3::Zero());
-    put(p.localB, l, has ? c[q].localB : Vec3::Zero());
-    put(p.n, l, has ? c[q].worldN : Vec3::Zero());
-    put(p.armA, l, has ? c[q].armA : Vec3::Zero());
-    put(p.armB, l, has ? c[q].armB : Vec3::Zero());
-    p.lastLambda.x[l] = has ? c[q].lastLambda : 0;
+    put(p.localA, l, c[q].localA);
+    put(p.localB, l, c[q].localB);
+    put(p.n, l, c[q].worldN);
+    put(p.armA, l, c[q].armA);
+    put(p.armB, l, c[q].armB);
+    p.lastLambda.x[l] = c[q].lastLambda;
+  }
+  // Points the manifold lacks: zero (the kernel makes them zero rows whatever they hold).
+  for (int q = f.normalCount; q < kMaxNormals; ++q) {
+    ManifoldLanes::Point& p = in.point[q];
+    for (Doubles* v : {p.localA, p.localB, p.n, p.armA, p.armB}) putZero(v, l);
+    p.lastLambda.x[l] = 0;
   }
   put(in.n, l, f.worldN);
   put(in.armA, l, f.armA);

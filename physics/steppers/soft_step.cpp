@@ -357,11 +357,13 @@ class SoftStepper final : public Stepper {
     const lanes::Formulation formulation = lanes::formulation(cs, h);
     const lanes::Kernel& kernel = lanes::kernel();
     const bool ahead = outgrowsL2(cs.manifoldBytes());
-    const auto fill = [&](const Segment& seg, size_t gi) {
+    // inLanes: what the kernel formulates from, one a thread (zeroed once, so a lane not in use,
+    // which the kernel makes zero rows of, holds numbers an earlier group left, not garbage).
+    if (inLanes) definitions_.resize(static_cast<size_t>(c.workers().threads()));
+    const auto fill = [&](const Segment& seg, size_t gi, int thread) {
       lanes::Group& g = groups_[gi];
       Row formulated[lanes::kMaxNormals + 3];  // deferred: a lane's manifold's rows, as build() would store them
       FrictionCoupling coupling;
-      lanes::ManifoldLanes definitions;  // inLanes: what the kernel formulates from
       const size_t per = seg.serial ? 1 : lanes::kLanes;
       const size_t first = (gi - seg.first) * per;
       g.count = static_cast<int>(std::min(per, seg.count - first));
@@ -393,7 +395,7 @@ class SoftStepper final : public Stepper {
         const int normals = used ? f.normalCount : 0;
         g.normals = std::max(g.normals, normals);
         if (inLanes) {
-          lanes::gatherManifold(cs, k, l, definitions);  // a lane not in use: lane 0's, formulated to zero rows
+          if (used) lanes::gatherManifold(cs, k, l, definitions_[static_cast<size_t>(thread)]);
           continue;
         }
         if (deferred && used) cs.formulateManifold(k, formulated, coupling);
@@ -422,16 +424,16 @@ class SoftStepper final : public Stepper {
           g.friction[i].mu.x[l] = r ? r->hi : 0;
         }
       }
-      if (inLanes) kernel.formulate(definitions, g, formulation);
+      if (inLanes) kernel.formulate(definitions_[static_cast<size_t>(thread)], g, formulation);
     };
     // Every run's groups in one job: a run is a few groups (three on the 100-level pyramid),
     // less than one block, so a job a run would leave them all to the calling thread.
-    c.workers().forRange(groups, 16, [&](size_t b, size_t e, int) {
+    c.workers().forRange(groups, 16, [&](size_t b, size_t e, int thread) {
       auto seg = std::upper_bound(segments_.begin(), segments_.end(), b,
                                   [](size_t gi, const Segment& s) { return gi < s.last; });
       for (size_t gi = b; gi < e; ++gi) {
         while (seg->last <= gi) ++seg;
-        fill(*seg, gi);
+        fill(*seg, gi, thread);
       }
     });
   }
@@ -704,6 +706,7 @@ class SoftStepper final : public Stepper {
   };
   bool lanes_ = false;  // this step's manifolds solved in lanes (buildLanes)
   std::vector<lanes::Group> groups_;
+  std::vector<lanes::ManifoldLanes> definitions_;  // buildLanes's, a thread
   std::vector<Segment> segments_;
   const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or runOrder_
   std::vector<int> runOrder_, runStart_;                                     // orderRuns
