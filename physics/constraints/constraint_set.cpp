@@ -641,23 +641,19 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
     for (int i = 0; i < ref.count; ++i)
       jointLambda_[static_cast<size_t>(jointLambdaFirst_[static_cast<size_t>(ref.joint)] + i)] =
           rows[static_cast<size_t>(ref.first + i)].lambda;
-  if (deferred_) {
-    parallel(manifolds.size(), 256, [&](size_t first, size_t last) {
-      for (size_t f = first; f < last; ++f) {
-        Manifold& m = manifolds[f];
+  // Deferred, the stepper left the manifolds' impulses in `impulses`; else they are in the rows. A
+  // manifold's normal rows are its first (build() lays them out so): its points' ContactDefs, 192
+  // bytes each, are not read for their row (on the 100-level pyramid, 7 MB a step).
+  parallel(manifolds.size(), 256, [&](size_t first, size_t last) {
+    for (size_t f = first; f < last; ++f) {
+      Manifold& m = manifolds[f];
+      if (deferred_) {
         const ManifoldImpulses& i = impulses[f];
         for (int p = 0; p < m.count; ++p) m.points[p].lambda = i.normal[p];
         m.frictionImpulse = i.tangentInB;
         m.twistImpulse = i.twist;
+        continue;
       }
-    });
-    return;
-  }
-  // A manifold's normal rows are its first (build() lays them out so): its points' ContactDefs,
-  // 192 bytes each, are not read for their row (on the 100-level pyramid, 7 MB a step).
-  parallel(manifolds.size(), 256, [&](size_t first, size_t last) {
-    for (size_t f = first; f < last; ++f) {
-      Manifold& m = manifolds[f];
       const Row* normals = &rows[static_cast<size_t>(manifoldRow_[f])];
       for (int p = 0; p < m.count; ++p) m.points[p].lambda = normals[p].lambda;
       const Row* fr = &rows[static_cast<size_t>(frictions[f].row)];
