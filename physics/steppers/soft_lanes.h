@@ -68,9 +68,10 @@ struct Group {
 // What formulating a group's manifolds reads, a lane each, in the world contact frame
 // (ContactFrame::World: the normals and arms the narrowphase found): the bodies' frames and the
 // points' and the friction's definitions (ConstraintSet::formulateManifold's, gathered by
-// gatherManifold, soft_lanes_fill.h). A point a lane does not have is zero and gives a zero row.
+// gatherManifold, soft_lanes_fill.h). A point a lane does not have, and a lane not in use (which
+// the fill leaves as an earlier group left it), give zero rows.
 struct ManifoldLanes {
-  int normals[kLanes] = {};  // each lane's points (0 in a lane not in use)
+  int normals[kLanes] = {};  // each lane's points (read in the lanes in use only)
   Doubles pA[3], RA[9], pB[3], RB[9];  // the bodies' frames: position [m], rotation (column-major)
   struct Point {
     Doubles localA[3], localB[3];  // on A in A's frame, on B in B's [m]
