@@ -226,16 +226,8 @@ void expectGroupAsRows(const ConstraintSet& cs, const StepInputs& in, const lane
   g.count = static_cast<int>(std::min<size_t>(lanes::kLanes, cs.frictions.size() - first));
   const auto manifold = [&](int l) { return first + (l < g.count ? static_cast<size_t>(l) : 0); };
   for (int l = 0; l < lanes::kLanes; ++l) {
-    const bool used = l < g.count;
     const FrictionDef& fd = cs.frictions[manifold(l)];
-    const BodyMass& A = in.mass[static_cast<size_t>(fd.a)];
-    const BodyMass& B = in.mass[static_cast<size_t>(fd.b)];
-    g.mA.x[l] = used ? A.invMass : 0;
-    g.mB.x[l] = used ? B.invMass : 0;
-    for (int i = 0; i < 3; ++i) {
-      g.invIA[i].x[l] = used ? A.invI[i] : 0;
-      g.invIB[i].x[l] = used ? B.invI[i] : 0;
-    }
+    lanes::putMasses(g, l, in.mass[static_cast<size_t>(fd.a)], in.mass[static_cast<size_t>(fd.b)], l < g.count);
     lanes::gatherManifold(cs, manifold(l), l, definitions);
   }
   k.formulate(definitions, g, lanes::formulation(cs, h));

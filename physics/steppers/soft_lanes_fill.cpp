@@ -47,6 +47,15 @@ void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in)
   in.radius.x[l] = f.radius;
 }
 
+void putMasses(Group& g, int l, const BodyMass& A, const BodyMass& B, bool used) {
+  g.mA.x[l] = used ? A.invMass : 0;
+  g.mB.x[l] = used ? B.invMass : 0;
+  for (int i = 0; i < 3; ++i) {
+    g.invIA[i].x[l] = used ? A.invI[i] : 0;
+    g.invIB[i].x[l] = used ? B.invI[i] : 0;
+  }
+}
+
 Formulation formulation(const ConstraintSet& cs, double hSub) {
   return {cs.formulationStep(), hSub, cs.slop(), cs.speculativeContacts()};
 }

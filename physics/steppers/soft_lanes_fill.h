@@ -11,6 +11,9 @@ namespace substep::lanes {
 // Lane l of `in` from manifold k of cs, contacts in the world frame (ContactFrame::World), warm
 // started (the set formulates its rows in lanes only then): everything formulateManifold(k) reads.
 void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in);
+// Lane l's inverse masses in g, those of bodies A and B as the rows' M̌⁻¹J̌ᵀ take them (finishRow's
+// scale is 1 under the soft step); zero in a lane not in use (`used` false).
+void putMasses(Group& g, int l, const BodyMass& A, const BodyMass& B, bool used);
 // The formulation constants of cs's last build, for sub-step hSub.
 Formulation formulation(const ConstraintSet& cs, double hSub);
 

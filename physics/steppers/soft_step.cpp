@@ -385,13 +385,7 @@ class SoftStepper final : public Stepper {
         g.massScale.x[l] = s.massScale;
         g.biasRate.x[l] = s.biasRate;
         g.impulseScale.x[l] = s.impulseScale;
-        // The rows' M̌⁻¹J̌ᵀ are the masses times J̌ (finishRow's scale is 1 here).
-        g.mA.x[l] = used ? A.invMass : 0;
-        g.mB.x[l] = used ? B.invMass : 0;
-        for (int i = 0; i < 3; ++i) {
-          g.invIA[i].x[l] = used ? A.invI[i] : 0;
-          g.invIB[i].x[l] = used ? B.invI[i] : 0;
-        }
+        lanes::putMasses(g, l, A, B, used);
         const int normals = used ? f.normalCount : 0;
         g.normals = std::max(g.normals, normals);
         if (inLanes) {
