@@ -39,10 +39,22 @@ void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>
 }
 
 void applyRowImpulses(ConstraintSet& cs, const IndexRange& rows, std::vector<Vec3>& v, std::vector<Vec3>& w) {
+  // Rows in a row on the same two bodies (a manifold's, a joint's) are applied to their bodies'
+  // velocities held here, read once and written back once: the same sums as row by row.
+  const Row* held = nullptr;  // the first row applied on the bodies held
+  Vec3 vA, wA, vB, wB;
   forEach(rows, [&](size_t q) {
     const Row& r = cs.rows[q];
-    if (r.lambda != 0) applyImpulse(r, r.lambda, v.data(), w.data());
+    if (r.lambda == 0) return;
+    if (!held || r.a != held->a || r.b != held->b) {
+      if (held) storeMoving(*held, vA, wA, vB, wB, v.data(), w.data());
+      held = &r;
+      vA = v[static_cast<size_t>(r.a)], wA = w[static_cast<size_t>(r.a)];
+      vB = v[static_cast<size_t>(r.b)], wB = w[static_cast<size_t>(r.b)];
+    }
+    applyImpulse(r, r.lambda, vA, wA, vB, wB);
   });
+  if (held) storeMoving(*held, vA, wA, vB, wB, v.data(), w.data());
 }
 
 namespace {
