@@ -136,8 +136,9 @@ class HavokActualStepper final : public Stepper {
       }
       for (int i = 0; i < m && part.units.count > 0; ++i) {
         if (stableOnly) predictStableRows(c);
-        const double change = sweep(cs, part.units, c.v, c.w, SweepScales{});
-        if (j + 1 == n && i + 1 == m) scratch.residual = std::max(scratch.residual, change);  // the last sweep's
+        const bool last = j + 1 == n && i + 1 == m;  // the step reports its last sweep's residual
+        const double change = sweep(cs, part.units, c.v, c.w, SweepScales{}, last);
+        if (last) scratch.residual = std::max(scratch.residual, change);
       }
       endSubStepImpulses(c, part);
       // v̌ʲ = ŵʲ - šʲ, recorded for s4; then šʲ⁺¹ and ŵʲ⁺¹.

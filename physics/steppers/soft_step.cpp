@@ -645,7 +645,7 @@ class SoftStepper final : public Stepper {
         const size_t k = static_cast<size_t>(u.first + q);
         Row& r = rows[k];
         const Update d = jointUpdate(r, k, p);
-        change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return -(d.a * jv + d.b) - d.si * r.lambda; }));
+        change = std::max(change, solveRow<Measure>(r, rows, v, w, [&](double jv) { return -(d.a * jv + d.b) - d.si * r.lambda; }));
       }
     }
     std::fill(change_.begin(), change_.end(), 0.0);

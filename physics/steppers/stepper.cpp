@@ -169,7 +169,7 @@ inline double velFactor(const Row& r, const SweepScales& k) { return r.velocityT
 
 // A block unit of N rows on two bodies (velocities va.. read by the caller): b = cBias β - cVel J̌v̌
 // for each row, Δλ = K⁻¹ b (stable) or the block's MLCP (contact), applied row by row.
-template <int N>
+template <int N, bool Measure>
 void solveBlockUnit(ConstraintSet& cs, const SolveUnit& u, Row* r, const SweepScales& k, Vec3& va, Vec3& wa, Vec3& vb,
                     Vec3& wb, double& change) {
   double b[N], dl[N];
@@ -188,7 +188,7 @@ void solveBlockUnit(ConstraintSet& cs, const SolveUnit& u, Row* r, const SweepSc
     r[i].lambda += dl[i];
     r[i].pushed = r[i].pushed || r[i].lambda > 0;
     applyImpulse(r[i], dl[i], va, wa, vb, wb);
-    noteChange(change, dl[i], r[i].effMass);
+    if (Measure) noteChange(change, dl[i], r[i].effMass);
   }
 }
 
@@ -202,12 +202,13 @@ SweepScales SweepScales::havok(const SolverSettings& s) {
 namespace {
 
 // One solve unit of a sweep (sweep's comment).
+template <bool Measure>
 __attribute__((always_inline)) inline void solveUnit(ConstraintSet& cs, const SolveUnit& u, Row* rows, Vec3* v, Vec3* w, const SweepScales& k,
                       double& change) {
   if (u.kind == SolveUnit::Single) {
     Row& r = rows[u.first];
     const double target = biasFactor(r, k) * r.bias, cv = velFactor(r, k);
-    change = std::max(change, solveRow(r, rows, v, w, [&](double jv) { return r.effMass * (target - cv * jv); }));
+    change = std::max(change, solveRow<Measure>(r, rows, v, w, [&](double jv) { return r.effMass * (target - cv * jv); }));
     return;
   }
   // A unit's rows share their two bodies (one manifold, one joint part): their velocities are
@@ -215,33 +216,41 @@ __attribute__((always_inline)) inline void solveUnit(ConstraintSet& cs, const So
   const int ia = rows[u.first].a, ib = rows[u.first].b;
   Vec3 va = v[ia], wa = w[ia], vb = v[ib], wb = w[ib];
   if (u.kind == SolveUnit::Friction) {  // friction rows are never speculative nor motors
-    solveFrictionUnit(cs.couplings[static_cast<size_t>(u.block)], &rows[u.first], rows, va, wa, vb, wb, k.bias, k.vel, change);
+    solveFrictionUnit<Measure>(cs.couplings[static_cast<size_t>(u.block)], &rows[u.first], rows, va, wa, vb, wb, k.bias, k.vel,
+                               change);
     storeMoving(rows[u.first], va, wa, vb, wb, v, w);
     return;
   }
   // Blocks: a joint's stable part (2 or 3 rows) or a manifold's normal rows (2 to 4).
   Row* r = &rows[u.first];
   switch (u.size) {
-    case 2: solveBlockUnit<2>(cs, u, r, k, va, wa, vb, wb, change); break;
-    case 3: solveBlockUnit<3>(cs, u, r, k, va, wa, vb, wb, change); break;
-    default: solveBlockUnit<4>(cs, u, r, k, va, wa, vb, wb, change); break;
+    case 2: solveBlockUnit<2, Measure>(cs, u, r, k, va, wa, vb, wb, change); break;
+    case 3: solveBlockUnit<3, Measure>(cs, u, r, k, va, wa, vb, wb, change); break;
+    default: solveBlockUnit<4, Measure>(cs, u, r, k, va, wa, vb, wb, change); break;
   }
   storeMoving(*r, va, wa, vb, wb, v, w);
 }
 
+// One loop for both forms of sweep, so that the block solves stay inlined in it
+// (docs/benchmarks.md); one copy measuring the change, one not.
+template <bool Measure>
+double sweepUnits(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w,
+                  const SweepScales& k) {
+  double change = 0;
+  for (int i = 0; i < units.count; ++i)
+    solveUnit<Measure>(cs, cs.units[static_cast<size_t>(units[i])], cs.rows.data(), v.data(), w.data(), k, change);
+  return change;
+}
+
 }  // namespace
 
-double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k) {
-  return sweep(cs, IndexRange{nullptr, 0, static_cast<int>(cs.units.size())}, v, w, k);
+double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k, bool measure) {
+  return sweep(cs, IndexRange{nullptr, 0, static_cast<int>(cs.units.size())}, v, w, k, measure);
 }
 
 double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w,
-             const SweepScales& k) {
-  // One loop for both forms, so that the block solves stay inlined in it (docs/benchmarks.md).
-  double change = 0;
-  for (int i = 0; i < units.count; ++i)
-    solveUnit(cs, cs.units[static_cast<size_t>(units[i])], cs.rows.data(), v.data(), w.data(), k, change);
-  return change;
+             const SweepScales& k, bool measure) {
+  return measure ? sweepUnits<true>(cs, units, v, w, k) : sweepUnits<false>(cs, units, v, w, k);
 }
 
 void recordSubStep(StepContext& c, int j) {
@@ -338,7 +347,11 @@ void stepVelocitiesScaled(StepContext& c, const std::function<void(int j)>& betw
   for (int j = 0; j < n; ++j) {
     addExternal(c, dt);
     startSubStepImpulses(c, j);
-    for (int i = 0; i < m && !cs.rows.empty(); ++i) c.stats.residual = sweep(cs, c.v, c.w, scales);
+    for (int i = 0; i < m && !cs.rows.empty(); ++i) {
+      const bool last = j + 1 == n && i + 1 == m;  // the step reports its last sweep's residual
+      const double change = sweep(cs, c.v, c.w, scales, last);
+      if (last) c.stats.residual = change;
+    }
     endSubStepImpulses(c);
     recordSubStep(c, j);
     if (j + 1 < n) between(j);

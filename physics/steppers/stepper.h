@@ -144,7 +144,7 @@ struct SweepScales {
 // its normals' current Σλ) and what was added is applied to the velocities; returns that velocity
 // change |Δλ| / m_eff [m/s or rad/s]. The two bodies' velocities are read once: the compiler
 // cannot tell the rows' doubles from the velocities' and would read them again.
-template <class Increment>
+template <bool Measure = true, class Increment>  // Measure false: returns 0
 inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment increment) {
   Vec3 va = v[r.a], wa = w[r.a], vb = v[r.b], wb = w[r.b];
   double dl = increment(rowVelocity(r, va, wa, vb, wb));
@@ -161,6 +161,7 @@ inline double solveRow(Row& r, const Row* rows, Vec3* v, Vec3* w, Increment incr
   if (dl == 0) return 0;
   applyImpulse(r, dl, va, wa, vb, wb);
   storeMoving(r, va, wa, vb, wb, v, w);
+  if (!Measure) return 0;
   return r.effMass > 0 ? std::abs(dl) / r.effMass : 0;
 }
 
@@ -198,10 +199,12 @@ __attribute__((always_inline)) inline void solveFrictionUnit(const FrictionCoupl
 
 // One Gauss-Seidel sweep over all solve units. For each unit
 //   Δλ = m_eff (cBias β - cVel J̌ v̌),  λ <- proj(λ + Δλ),  v̌ += M̌⁻¹J̌ᵀ Δλ
-// Returns the largest velocity change of a row, |Δλ| / m_eff [m/s or rad/s]. The second form
-// sweeps the listed units only (one island's).
-double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k);
-double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k);
+// Returns the largest velocity change of a row, |Δλ| / m_eff [m/s or rad/s], or 0 unless measure
+// (a sub-stepped step reports its last sweep's only). The second form sweeps the listed units only
+// (one island's).
+double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k, bool measure = true);
+double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k,
+             bool measure = true);
 
 // Restitution (an extension: the report has none), after the velocity solve as Box2D does it:
 // every contact point that was closing faster than the threshold at the step's start and pushed
