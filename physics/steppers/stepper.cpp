@@ -39,7 +39,7 @@ void applyRowImpulses(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>
 }
 
 void applyRowImpulses(ConstraintSet& cs, const IndexRange& rows, std::vector<Vec3>& v, std::vector<Vec3>& w) {
-  // Rows in a row on the same two bodies (a manifold's, a joint's) are applied to their bodies'
+  // Consecutive rows on the same two bodies (a manifold's, a joint's) are applied to those bodies'
   // velocities held here, read once and written back once: the same sums as row by row.
   const Row* held = nullptr;  // the first row applied on the bodies held
   Vec3 vA, wA, vB, wB;
