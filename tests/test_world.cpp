@@ -141,8 +141,9 @@ TEST_P(EveryAlgorithm, Deterministic) {
 
 // A sub-stepped step (A3-A5) reports the largest velocity change of its last sweep, the one
 // measured (sweep's measure): Gauss-Seidel converges, so after 40 sweeps a sub-step it is far
-// smaller than after one, and not zero on a stack whose contacts act every step. (Measured on the
-// first sweep, it would be as large either way; measured on none, zero.)
+// smaller than after one (0.0037 m/s against 0.41 at the 30th step), and not zero on a stack whose
+// contacts act every step. (Measured on the step's first sweep instead, 0.055 against 0.41;
+// measured on none, zero.)
 TEST(World, SubSteppedStepsReportTheirLastSweepsChange) {
   const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/stack.json");
   for (const Algorithm a : {Algorithm::A3, Algorithm::A4, Algorithm::A5}) {
@@ -153,7 +154,7 @@ TEST(World, SubSteppedStepsReportTheirLastSweepsChange) {
       residual[m > 1] = w.lastReport().solver.residual;
     }
     EXPECT_GT(residual[0], 0) << algorithmName(a);
-    EXPECT_LT(residual[1], 0.1 * residual[0]) << algorithmName(a) << ": " << residual[1] << " after 40 sweeps, "
+    EXPECT_LT(residual[1], 0.05 * residual[0]) << algorithmName(a) << ": " << residual[1] << " after 40 sweeps, "
                                                << residual[0] << " after one";
   }
 }
