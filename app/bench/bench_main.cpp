@@ -20,6 +20,7 @@
 #include "lab/peers.h"
 #include "lab/chart.h"
 #include "lab/provenance.h"
+#include "app/bench/ratio_text.h"
 #include "app/common.h"
 #include "physics/constraints/joints.h"
 #include "physics/scene_file.h"
@@ -253,13 +254,6 @@ Run medianRun(std::vector<Run> runs) {
   return a;  // contacts and displacement: the same in every repeat when `repeatable`
 }
 
-
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
-
 // Totals of the runs, in repeat order [s].
 std::vector<double> totals(const Result& r) {
   std::vector<double> t;
@@ -278,11 +272,6 @@ double spread(const Result& r) {
 // One case against another on the same scene: the ratio of the median totals, and the range of
 // the ratios of the repeats taken pairwise (repeat k of both ran close together in time, so the
 // range shows how much the machine's noise moves the ratio).
-struct Ratio {
-  double median = NAN, lo = NAN, hi = NAN;
-  bool valid() const { return !std::isnan(median); }
-};
-
 Ratio ratio(const Result* a, const Result* b) {
   Ratio q;
   if (!a || !b || !(b->median.total > 0)) return q;
@@ -293,13 +282,6 @@ Ratio ratio(const Result* a, const Result* b) {
     q.hi = std::isnan(q.hi) ? x : std::max(q.hi, x);
   }
   return q;
-}
-
-// digits: after the point, 2 or 4 (4 where two would round a ratio onto the bound it is judged by).
-std::string ratioText(const Ratio& q, int digits = 2) {
-  if (!q.valid()) return "-";
-  const char* f = digits == 4 ? "%.4f" : "%.2f";
-  return fmt(f, q.median) + "x (" + fmt(f, q.lo) + "-" + fmt(f, q.hi) + ")";
 }
 
 const Result* find(const std::vector<Result>& results, const std::string& scene, const char* caseId, int threads = 1) {
@@ -505,9 +487,7 @@ void printTargets(const std::vector<Result>& results, std::ostream& out) {
     out << "  " << t.scene << " " << j.one->c->label;
     if (t.speedUp) out << " on " << j.other->threads << " threads: speed-up at least " << fmt("%.2fx", t.bound);
     else out << ": at most " << fmt("%.2fx", t.bound) << " Bullet's step time";
-    // 1.5996x would print as 1.60x against "at least 1.60x" and NOT MET: four places then.
-    const bool onTheBound = fmt("%.2f", j.ratio.median) == fmt("%.2f", t.bound);
-    out << ": " << (j.met ? "MET" : "NOT MET") << " (" << ratioText(j.ratio, onTheBound ? 4 : 2) << ")\n";
+    out << ": " << (j.met ? "MET" : "NOT MET") << " (" << ratioText(j.ratio, t.bound) << ")\n";
   }
 }
 
