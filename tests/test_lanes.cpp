@@ -330,3 +330,117 @@ TEST(Lanes, PointsApartHoldNothingWithoutSpeculativeContacts) {
       for (size_t k = 0; k < one.hashes.size(); ++k) ASSERT_EQ(one.hashes[k], eight.hashes[k]) << what << ", step " << k + 1;
     }
 }
+
+namespace {
+
+void expectSameRow(const Row& lanes, const Row& one, const std::string& what) {
+  const auto same = [&](double a, double b, const char* field) {
+    EXPECT_TRUE(sameBits(a, b)) << what << " " << field << ": lanes " << a << ", one by one " << b;
+  };
+  EXPECT_EQ(lanes.a, one.a) << what;
+  EXPECT_EQ(lanes.b, one.b) << what;
+  for (int i = 0; i < 3; ++i) {
+    same(lanes.lin[i], one.lin[i], "lin");
+    same(lanes.angA[i], one.angA[i], "angA");
+    same(lanes.angB[i], one.angB[i], "angB");
+    same(lanes.mAngA[i], one.mAngA[i], "mAngA");
+    same(lanes.mAngB[i], one.mAngB[i], "mAngB");
+  }
+  same(lanes.mA, one.mA, "mA");
+  same(lanes.mB, one.mB, "mB");
+  same(lanes.effMass, one.effMass, "effMass");
+  same(lanes.bias, one.bias, "bias");
+  same(lanes.lo, one.lo, "lo");
+  same(lanes.hi, one.hi, "hi");
+  same(lanes.split, one.split, "split");
+  same(lanes.lambda, one.lambda, "lambda");
+  EXPECT_EQ(lanes.normalRow, one.normalRow) << what;
+  EXPECT_EQ(lanes.normalCount, one.normalCount) << what;
+  EXPECT_EQ(lanes.velocityLevel, one.velocityLevel) << what;
+  EXPECT_EQ(lanes.velocityTarget, one.velocityTarget) << what;
+  EXPECT_EQ(lanes.speculative, one.speculative) << what;
+  EXPECT_EQ(lanes.pushed, one.pushed) << what;
+}
+
+// Two sets built from the same inputs, contacts formulated in lanes by kernel k and one manifold
+// at a time: every row, friction coupling and contact block the same to the last bit.
+void expectSameSets(const World& w, const SolverSettings& st, const lanes::Kernel& k, const std::string& context,
+                    int& blocksChecked) {
+  const StepInputs in = stepInputs(w);
+  const double h = st.dt / st.substeps, scale = st.algorithm == Algorithm::A5 ? st.kappa : 1.0;
+  ConstraintSet eight, one;
+  one.formulateInLanes(false);
+  lanes::useKernel(&k);
+  eight.build(w.model(), w.manifolds(), in.poses, in.mass, st, h, scale);
+  lanes::useKernel(nullptr);
+  one.build(w.model(), w.manifolds(), in.poses, in.mass, st, h, scale);
+  ASSERT_TRUE(eight.formulatedInLanes()) << context;
+  ASSERT_FALSE(one.formulatedInLanes()) << context;
+  const std::string what = context + ", " + k.name;
+  ASSERT_EQ(eight.rows.size(), one.rows.size()) << what;
+  for (size_t r = 0; r < one.rows.size(); ++r) expectSameRow(eight.rows[r], one.rows[r], what + ", row " + std::to_string(r));
+  ASSERT_EQ(eight.couplings.size(), one.couplings.size()) << what;
+  for (size_t c = 0; c < one.couplings.size(); ++c) {
+    EXPECT_TRUE(sameBits(eight.couplings[c].g10, one.couplings[c].g10)) << what << ", coupling " << c;
+    EXPECT_TRUE(sameBits(eight.couplings[c].g20, one.couplings[c].g20)) << what << ", coupling " << c;
+    EXPECT_TRUE(sameBits(eight.couplings[c].g21, one.couplings[c].g21)) << what << ", coupling " << c;
+  }
+  ASSERT_EQ(eight.units.size(), one.units.size()) << what;
+  ASSERT_EQ(eight.blocks.size(), one.blocks.size()) << what;
+  for (size_t b = 0; b < one.blocks.size(); ++b) {
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        EXPECT_TRUE(sameBits(eight.blocks[b].K(i, j), one.blocks[b].K(i, j))) << what << ", block " << b << " K " << i << j;
+        EXPECT_TRUE(sameBits(eight.blocks[b].invK(i, j), one.blocks[b].invK(i, j)))
+            << what << ", block " << b << " invK " << i << j;
+      }
+    EXPECT_EQ(eight.blocks[b].lastMask, one.blocks[b].lastMask) << what << ", block " << b;
+  }
+  blocksChecked += static_cast<int>(one.blocks.size());
+}
+
+}  // namespace
+
+// The rows build() stores are formulated eight manifolds at a time by every kernel as
+// formulateManifold, finishRow and formBlock make them one at a time, to the last bit: in the
+// bodies' frame with A5's κ-scaled M̌⁻¹J̌ᵀ and contact blocks (the 20-level pyramid's settings,
+// speculative points or not, one to four points a manifold, normals past tangentBasis's switch),
+// cold under A3, and in the world frame (the soft step one manifold at a time).
+TEST(Lanes, StoredRowsAreFormulatedInLanesAsOneAtATime) {
+  const Scene s = rampScene();
+  std::vector<const lanes::Kernel*> kernels = {&lanes::sse2Kernel()};
+  if (lanes::avx2Supported()) kernels.push_back(&lanes::avx2Kernel());
+  if (lanes::avx512Supported()) kernels.push_back(&lanes::avx512Kernel());
+  struct Case {
+    const char* name;
+    Algorithm algorithm;
+    bool warm, blocks, speculative;
+  };
+  const Case cases[] = {
+      {"a5 blocks", Algorithm::A5, true, true, true},
+      {"a5 blocks not speculative", Algorithm::A5, true, true, false},
+      {"a3 cold", Algorithm::A3, false, false, true},
+      {"soft one by one", Algorithm::Soft, true, false, true},  // its lanes off: rows stored
+  };
+  for (const Case& c : cases) {
+    SolverOverrides o = scene("pyramid.json").solver;  // κ 0.85, τ 0
+    o.set(&SolverSettings::algorithm, c.algorithm);
+    o.set(&SolverSettings::warmStart, c.warm);
+    o.set(&SolverSettings::contactBlocks, c.blocks);
+    o.set(&SolverSettings::speculative, c.speculative);
+    if (c.algorithm == Algorithm::Soft) o.set(&SolverSettings::lanes, false);
+    const SolverSettings st = resolve(o);
+    ASSERT_EQ(st.contactFrame, c.algorithm == Algorithm::Soft ? ContactFrame::World : ContactFrame::Bodies) << c.name;
+    World w(s.model, st, s.initial);
+    int blocks = 0;
+    for (int step = 0; step < 45; ++step) {
+      w.step();
+      if (step % 4 != 0 || w.manifolds().empty()) continue;
+      for (const lanes::Kernel* k : kernels) {
+        expectSameSets(w, st, *k, std::string(c.name) + ", step " + std::to_string(step + 1), blocks);
+        if (HasFailure()) return;
+      }
+    }
+    EXPECT_EQ(blocks > 0, c.blocks) << c.name << ": contact blocks checked " << blocks;
+  }
+}

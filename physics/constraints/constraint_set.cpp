@@ -126,6 +126,11 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   mass_ = &mass;
   h_ = h;
   applyScale_ = applyScale;
+  // Stored rows are formulated eight manifolds at a time in SIMD lanes (contact_lanes.cpp), the
+  // same numbers as formulateManifold's; with contact blocks, their K and K⁻¹ too.
+  const bool inLanes = inLanes_ = !deferred_ && lanesAsked_ && applyScale > 0 && nm > 0;
+  blocksInLanes_ = inLanes && contactBlocks_;
+  if (blocksInLanes_) laneBlocks_.resize(nm);
   parallel(nm, 32, [&](size_t first, size_t last) {
     for (size_t mk = first; mk < last; ++mk) {
       const Manifold& m = manifolds[mk];
@@ -171,8 +176,9 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       frictions[mk] = f;
       // The rows, M̌⁻¹J̌ᵀ, the effective masses and the friction coupling while the definitions are
       // in cache, not in a pass over every row afterwards (finishAll does the joints').
-      if (!deferred_) formulateManifold(mk, rows.data() + manifoldRow_[mk], couplings[mk]);
+      if (!deferred_ && !inLanes) formulateManifold(mk, rows.data() + manifoldRow_[mk], couplings[mk]);
     }
+    if (inLanes) formulateManifoldsInLanes(first, last);
   });
   bouncing.clear();
   for (size_t k = 0; k < nm; ++k)
@@ -209,8 +215,11 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   finishAll(mass, applyScale, true);
   // The active set each contact block ended the last step with is where this step's starts.
   for (size_t k = 0; k < frictions.size(); ++k)
-    if (frictions[k].unit >= 0)
-      blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)].lastMask = manifolds[k].blockMask;
+    if (frictions[k].unit >= 0) {
+      BlockData& d = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)];
+      if (blocksInLanes_) d = laneBlocks_[k];
+      d.lastMask = manifolds[k].blockMask;
+    }
   // A5 solves island by island; the soft step, uncoloured, shares the islands out among its
   // threads (coloured, the colours share the manifolds out).
   // In lanes (SolverSettings::lanes) it goes by levels and reads no island.
@@ -556,8 +565,11 @@ void ConstraintSet::finishAll(const std::vector<BodyMass>& mass, double applySca
   // Single rows have nothing more, the friction units' couplings were made with their rows.
   if (contactsFinished && blocks.empty()) return;
   parallel(units.size(), 256, [&](size_t first, size_t last) {
-    for (size_t u = first; u < last; ++u)
-      if (!(contactsFinished && units[u].kind == SolveUnit::Friction)) finishUnit(units[u], mass, applyScale);
+    for (size_t u = first; u < last; ++u) {
+      const SolveUnit::Kind kind = units[u].kind;
+      if (contactsFinished && (kind == SolveUnit::Friction || (kind == SolveUnit::Contact && blocksInLanes_))) continue;
+      finishUnit(units[u], mass, applyScale);
+    }
   });
 }
 

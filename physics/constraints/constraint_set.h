@@ -83,6 +83,11 @@ class ConstraintSet {
   // normal rows, then its three friction rows: normalCount + 3), and their friction coupling.
   // Valid from build() while the masses it was given live.
   void formulateManifold(size_t k, Row* out, FrictionCoupling& coupling) const;
+  // Stored contact rows (and contact blocks' K and K⁻¹) formulated eight manifolds at a time in
+  // SIMD lanes (on by default), or each manifold on its own: the same numbers (tests/test_lanes.cpp),
+  // off for that test and to measure what the lanes buy.
+  void formulateInLanes(bool on) { lanesAsked_ = on; }
+  bool formulatedInLanes() const { return inLanes_; }  // the last build()'s contact rows were
   // Asks the cache for manifold k's rows, or deferred for what formulateManifold(k) reads (a caller
   // taking the manifolds out of their order does, a few ahead, when they outgrow the cache); and
   // how many bytes that is for all the manifolds.
@@ -152,6 +157,11 @@ class ConstraintSet {
   void finishJoint(const JointRef& ref, const std::vector<BodyMass>& mass, double applyScale);
   void finishRows(int firstRow, int lastRow, const std::vector<BodyMass>& mass, double applyScale);
   void finishUnit(SolveUnit& u, const std::vector<BodyMass>& mass, double applyScale);
+  // Manifolds [first, last)'s rows, couplings and (blocksInLanes_) blocks into laneBlocks_, eight
+  // at a time (contact_lanes.cpp).
+  void formulateManifoldsInLanes(size_t first, size_t last);
+  bool lanesAsked_ = true, inLanes_ = false, blocksInLanes_ = false;
+  std::vector<BlockData> laneBlocks_;  // per manifold: its contact block, until finishAll numbers them
 
   const Model* model_ = nullptr;
   WorkerPool* pool_ = nullptr;

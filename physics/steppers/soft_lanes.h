@@ -15,6 +15,11 @@
 // filled (in the world contact frame by the kernel, eight at once: Kernel::formulate), and its
 // impulses go to ConstraintSet::impulses (ConstraintSet::askDeferredContactRows).
 //
+// The same kernel formulates the contact rows every other build stores (A1-A5, the soft step one
+// manifold at a time or with joints): Kernel::formulateRows, called by ConstraintSet::build
+// (physics/constraints/contact_lanes.cpp), in either contact frame, κ-scaled, with the contact
+// blocks' K and K⁻¹.
+//
 // No Eigen here: the kernel is compiled three times, for AVX-512, for AVX2 and for the baseline
 // x86-64 (SSE2), and the widest the processor runs is taken at run time. Inline functions shared
 // with other files would be compiled for AVX-512 in one copy and could be the one the linker keeps.
@@ -82,6 +87,10 @@ struct ManifoldLanes {
   Doubles lastImpulse[3];  // tangential warm start, in B's frame [N s]
   Doubles lastTwist;  // [N m s]
   Doubles mu, radius;  // friction coefficient; the points' mean distance from the centroid [m]
+  // ContactFrame::Bodies (formulateRows only): each point's normal in B's frame, and the friction's
+  // centroid on A and on B in their frames and normal in B's; the world fields above unread.
+  Doubles localN[kMaxNormals][3];
+  Doubles frictionLocalA[3], frictionLocalB[3], frictionLocalN[3];
 };
 // The formulation's constants: the time step the rows' β is for (ConstraintSet::build's) and the
 // sub-step C⁰ = -β h is taken over (both h/n here) [s], the allowed penetration [m], and whether
@@ -89,6 +98,33 @@ struct ManifoldLanes {
 struct Formulation {
   double hBuild, hSub, slop;
   bool speculative;
+  // formulateRows only: the scale of M̌⁻¹J̌ᵀ (ConstraintSet::build's applyScale, > 0) and its
+  // inverse as formBlock takes it; the frame; whether contact blocks' K and K⁻¹ are wanted.
+  double scale = 1, unscale = 1;
+  bool bodiesFrame = false, blocks = false;
+};
+
+// Rows as the set stores them, eight manifolds at a time (Kernel::formulateRows): what
+// formulateContact, formulateFriction, finishRow, frictionCoupling and formBlock compute, the same
+// numbers; the rest of a Row (bodies, bounds, flags, λ) is copied or set where they are stored.
+struct MassLanes {
+  Doubles mA, mB;              // inverse masses [1/kg]
+  Doubles invIA[3], invIB[3];  // M̌⁻¹, rotational [1/(kg m²)]
+};
+struct FormedRow {
+  Doubles lin[3], angA[3], angB[3];  // J̌
+  Doubles mAngA[3], mAngB[3];        // M̌⁻¹J̌ᵀ, rotational, scaled
+  Doubles effMass;                   // unscaled
+};
+struct FormedManifold {
+  FormedRow normal[kMaxNormals];
+  Doubles bias[kMaxNormals];  // β = -(C + slop) / h [m/s]
+  FormedRow friction[3];      // t1, t2, twist
+  Doubles carried[2];         // the tangential warm start on this step's tangents [N s]
+  Doubles g10, g20, g21;      // FrictionCoupling, scaled
+  // The contact block of the lane's points (Formulation::blocks): K (unscaled, zero outside the
+  // points) and K⁻¹ of K regularised (identity outside the points; all zero where it failed).
+  Doubles K[kMaxNormals][kMaxNormals], invK[kMaxNormals][kMaxNormals];
 };
 
 // A sweep's pass: the solve (soft, with position feedback) or the relax (rigid, none).
@@ -111,6 +147,9 @@ struct Kernel {
   // make them (scale 1), and λ warm: every number the same to the last bit. Reads the group's
   // count and inverse masses; lanes not in use, and points a lane does not have, are zero rows.
   void (*formulate)(const ManifoldLanes& in, Group& g, const Formulation& f);
+  // Stored rows of eight manifolds (every lane's four points, whatever it has; the caller copies
+  // the ones it has), in the world or the bodies' frame, scaled by f.scale.
+  void (*formulateRows)(const ManifoldLanes& in, const MassLanes& m, FormedManifold& out, const Formulation& f);
   const char* name;  // "avx512", "avx2" or "sse2"
 };
 

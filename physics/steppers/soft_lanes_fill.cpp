@@ -27,20 +27,30 @@ void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in)
     ManifoldLanes::Point& p = in.point[q];
     put(p.localA, l, c[q].localA);
     put(p.localB, l, c[q].localB);
-    put(p.n, l, c[q].worldN);
-    put(p.armA, l, c[q].armA);
-    put(p.armB, l, c[q].armB);
+    if (f.worldFrame) {
+      put(p.n, l, c[q].worldN);
+      put(p.armA, l, c[q].armA);
+      put(p.armB, l, c[q].armB);
+    } else {
+      put(in.localN[q], l, c[q].localN);
+    }
     p.lastLambda.x[l] = c[q].lastLambda;
   }
   // Points the manifold lacks: zero (the kernel makes them zero rows whatever they hold).
   for (int q = f.normalCount; q < kMaxNormals; ++q) {
     ManifoldLanes::Point& p = in.point[q];
-    for (Doubles* v : {p.localA, p.localB, p.n, p.armA, p.armB}) putZero(v, l);
+    for (Doubles* v : {p.localA, p.localB, p.n, p.armA, p.armB, in.localN[q]}) putZero(v, l);
     p.lastLambda.x[l] = 0;
   }
-  put(in.n, l, f.worldN);
-  put(in.armA, l, f.armA);
-  put(in.armB, l, f.armB);
+  if (f.worldFrame) {
+    put(in.n, l, f.worldN);
+    put(in.armA, l, f.armA);
+    put(in.armB, l, f.armB);
+  } else {
+    put(in.frictionLocalA, l, f.localA);
+    put(in.frictionLocalB, l, f.localB);
+    put(in.frictionLocalN, l, f.localN);
+  }
   put(in.lastImpulse, l, f.lastImpulse);
   in.lastTwist.x[l] = f.lastTwist;
   in.mu.x[l] = f.mu;

@@ -8,8 +8,8 @@
 
 namespace substep::lanes {
 
-// Lane l of `in` from manifold k of cs, contacts in the world frame (ContactFrame::World), warm
-// started (the set formulates its rows in lanes only then): everything formulateManifold(k) reads.
+// Lane l of `in` from manifold k of cs: everything formulateManifold(k) reads, the frame's fields
+// (the world's, or with ContactFrame::Bodies the bodies' local ones) and the warm start's.
 void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in);
 // Lane l's inverse masses in g, those of bodies A and B as the rows' M̌⁻¹J̌ᵀ take them (finishRow's
 // scale is 1 under the soft step); zero in a lane not in use (`used` false).
