@@ -147,8 +147,8 @@ struct Kernel {
   // make them (scale 1), and λ warm: every number the same to the last bit. Reads the group's
   // count and inverse masses; lanes not in use, and points a lane does not have, are zero rows.
   void (*formulate)(const ManifoldLanes& in, Group& g, const Formulation& f);
-  // Stored rows of eight manifolds (every lane's four points, whatever it has; the caller copies
-  // the ones it has), in the world or the bodies' frame, scaled by f.scale.
+  // Stored rows of eight manifolds (up to the most points a lane has; the caller copies the ones
+  // each lane has), in the world or the bodies' frame, scaled by f.scale.
   void (*formulateRows)(const ManifoldLanes& in, const MassLanes& m, FormedManifold& out, const Formulation& f);
   const char* name;  // "avx512", "avx2" or "sse2"
 };
