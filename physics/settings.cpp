@@ -237,12 +237,13 @@ std::vector<SettingSpec> makeTable() {
        "its islands, spread over the threads). A different "
        "order: on the 100-level pyramid a box slides 65 cm in 10 s with it, 22 cm without (docs/algorithms.md)",
        &S::colours, same(0), {}},
-      {"lanes", "", "lanes", K::Flag, {0, 0}, {}, {A::Soft}, O::Limit, "", kNone,
-       "soft: solve the contacts eight manifolds at a time in SIMD lanes (AVX-512, or four an instruction with AVX2 or "
-       "without), in runs "
+      {"lanes", "", "lanes", K::Flag, {0, 0}, {}, {A::A5, A::Soft}, O::Limit, "", kNone,
+       "soft, a5: solve the contacts eight manifolds at a time in SIMD lanes (AVX-512, or four an instruction with AVX2 "
+       "or without), in runs "
        "that share no moving body: the colours, or without them the step's order cut where it can be (its levels); "
        "the trajectory is the same to the last bit either way (off: one manifold at a time, to compare the speed; "
-       "split contact orders are solved so)",
+       "soft: split contact orders are solved so; a5: on one thread, warm, with contact blocks, no joints and "
+       "up to about 1000 manifolds, whose lanes fit in the L2 cache)",
        &S::lanes, same(1), {}},
       {"threads", "", "threads", K::Integer, {1, limits::kMaxThreads}, {}, kEvery, O::Limit, "", kNone,
        "Threads a step runs on: the broadphase's queries, the narrowphase, the formulation, the soft step's "

@@ -319,6 +319,7 @@ void World::formulate() {
   const double hSub = settings_.dt / settings_.substeps;
   const double applyScale = settings_.algorithm == Algorithm::A5 ? settings_.kappa : 1.0;
   constraints_.askDeferredContactRows(stepper_->formulatesContactRows(settings_));
+  constraints_.askLaneGroups(stepper_->asksLaneGroups(settings_, pool_->threads()));
   constraints_.build(model_, solvedManifolds(), ctx_.poses, ctx_.mass, settings_, hSub, applyScale);
   // The approach speed restitution reflects: the contact's at the end of this step in free flight
   // (v + h g), nearer the speed of impact within the step than Box2D's at its start. A ball dropped

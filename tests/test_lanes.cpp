@@ -444,3 +444,51 @@ TEST(Lanes, StoredRowsAreFormulatedInLanesAsOneAtATime) {
     EXPECT_EQ(blocks > 0, c.blocks) << c.name << ": contact blocks checked " << blocks;
   }
 }
+
+// A5 sweeps the lanes build() lays out in the runs of the step's order (warm, contact blocks, one
+// thread) with the numbers of its sweep one manifold at a time, to the last bit, on every kernel:
+// on the pyramid (four-point blocks, the active-set search where neither none nor all push) and the
+// ramp (one to four points: single rows beside blocks, normals past tangentBasis's switch), with
+// τ 0 and τ 0.2 (friction's bias refreshed in the lanes between sub-steps), in the manifold order,
+// and without speculative points (held points).
+TEST(Lanes, A5SweepsInLanesAsOneAtATime) {
+  std::vector<const lanes::Kernel*> kernels = {&lanes::sse2Kernel()};
+  if (lanes::avx2Supported()) kernels.push_back(&lanes::avx2Kernel());
+  if (lanes::avx512Supported()) kernels.push_back(&lanes::avx512Kernel());
+  struct Case {
+    const char* name;
+    double tau;
+    ContactOrder order;
+    bool speculative;
+  };
+  const Case cases[] = {
+      {"pyramid.json's", 0, ContactOrder::Split, true},
+      {"tau 0.2", 0.2, ContactOrder::Split, true},
+      {"manifold order", 0, ContactOrder::Manifold, true},
+      {"not speculative", 0, ContactOrder::Split, false},
+  };
+  const std::pair<const char*, Scene> scenes[] = {{"pyramid", scene("pyramid.json")}, {"ramp", rampScene()}};
+  for (const auto& [sceneName, s] : scenes)
+    for (const Case& c : cases) {
+      const auto settings = [&](bool lanes) {
+        SolverOverrides o = scene("pyramid.json").solver;  // a5, κ 0.85, warm, contact blocks
+        o.set(&SolverSettings::tau, c.tau);
+        o.set(&SolverSettings::contactOrder, c.order);
+        o.set(&SolverSettings::speculative, c.speculative);
+        o.set(&SolverSettings::lanes, lanes);
+        return resolve(o);
+      };
+      const std::string what = std::string(sceneName) + ", " + c.name;
+      const Stepped one = trajectory(s, settings(false), 60);
+      ASSERT_EQ(one.laneRuns, 0) << what;
+      for (const lanes::Kernel* k : kernels) {
+        lanes::useKernel(k);
+        const Stepped eight = trajectory(s, settings(true), 60);
+        lanes::useKernel(nullptr);
+        ASSERT_GT(eight.laneRuns, 0) << what << ", " << k->name;
+        ASSERT_EQ(one.hashes.size(), eight.hashes.size()) << what;
+        for (size_t step = 0; step < one.hashes.size(); ++step)
+          ASSERT_EQ(one.hashes[step], eight.hashes[step]) << what << ", " << k->name << ", step " << step + 1;
+      }
+    }
+}

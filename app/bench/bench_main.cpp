@@ -100,7 +100,7 @@ struct Case {
 // Every case the benchmark knows, in table order. Adding one, or running one by default, is an
 // edit of one line here. Equal solver work: a2-m4 makes 4 Gauss-Seidel sweeps per step, as
 // a3/a4/a5 at n = 4 sub-steps of m = 1 sweep do. a5-stack has pyramid.json's settings, what holds
-// the pyramid. soft-one: the soft step without its lanes, one manifold at a time.
+// the pyramid. soft-one, a5-one: the soft step and a5-stack without their lanes, one manifold at a time.
 const std::vector<Case>& allCases() {
   static const std::vector<Case> list = {
       {"a2", "a2 (m=10)", "a2:m=10", true},
@@ -109,6 +109,7 @@ const std::vector<Case>& allCases() {
       {"a4", "a4 (n=4 m=1)", "a4:n=4:m=1", true},
       {"a5", "a5 (n=4 m=1)", "a5:n=4:m=1", true},
       {"a5-stack", "a5 pyramid.json", "a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", true},
+      {"a5-one", "a5 one by one", "a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on:lanes=off", false},  // a5-stack without lanes
       {"soft", "soft (n=4)", "soft:n=4:m=1", true},
       {"soft-colours", "soft colours", "soft:n=4:m=1:colours=on", false},
       {"soft-one", "soft one by one", "soft:n=4:m=1:lanes=off", false},  // what the lanes buy: the same numbers

@@ -131,6 +131,17 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   const bool inLanes = inLanes_ = !deferred_ && lanesAsked_ && applyScale > 0 && nm > 0;
   blocksInLanes_ = inLanes && contactBlocks_;
   if (blocksInLanes_) laneBlocks_.resize(nm);
+  // A5's lanes: the definitions first, then the groups in the runs' order. Only while the groups
+  // fit in the core's L2 cache (about 1 KB a manifold; the 20-level pyramid's 400 manifolds do,
+  // the 40-level one's 1640 do not): the sweeps stream them eight times a step, and formulated in
+  // the runs' order the rows are written out of order; beyond L2 both cost more than the lanes
+  // save (docs/benchmarks.md).
+  const bool grouped = inLanes && laneGroupsAsked_ && settings.warmStart && contactBlocks_ && model.joints.empty() &&
+                       !LaneRuns::outgrowsL2(nm * sizeof(lanes::RigidGroup) / lanes::kLanes);
+  if (!grouped) {
+    laneGroups_.clear();
+    runCount_ = 0;
+  }
   parallel(nm, 32, [&](size_t first, size_t last) {
     for (size_t mk = first; mk < last; ++mk) {
       const Manifold& m = manifolds[mk];
@@ -178,8 +189,9 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       // in cache, not in a pass over every row afterwards (finishAll does the joints').
       if (!deferred_ && !inLanes) formulateManifold(mk, rows.data() + manifoldRow_[mk], couplings[mk]);
     }
-    if (inLanes) formulateManifoldsInLanes(first, last);
+    if (inLanes && !grouped) formulateManifoldsInLanes(first, last);
   });
+  if (grouped) formulateLaneGroups();
   bouncing.clear();
   for (size_t k = 0; k < nm; ++k)
     if (bounces_[k])
@@ -219,6 +231,11 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       BlockData& d = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)];
       if (blocksInLanes_) d = laneBlocks_[k];
       d.lastMask = manifolds[k].blockMask;
+    }
+  for (lanes::RigidGroup& g : laneGroups_)
+    for (int l = 0; l < g.count; ++l) {
+      const FrictionDef& f = frictions[static_cast<size_t>(g.manifold[l])];
+      if (f.unit >= 0) g.block[l] = units[static_cast<size_t>(f.unit)].block;
     }
   // A5 solves island by island; the soft step, uncoloured, shares the islands out among its
   // threads (coloured, the colours share the manifolds out).

@@ -4,10 +4,12 @@
 
 #include "physics/collision/manifold.h"
 #include "physics/constraints/contact.h"
+#include "physics/constraints/lane_runs.h"
 #include "physics/constraints/row.h"
 #include "physics/model.h"
 #include "physics/parallel.h"
 #include "physics/settings.h"
+#include "physics/steppers/soft_lanes.h"
 
 #include <cstdint>
 #include <vector>
@@ -88,6 +90,13 @@ class ConstraintSet {
   // off for that test and to measure what the lanes buy.
   void formulateInLanes(bool on) { lanesAsked_ = on; }
   bool formulatedInLanes() const { return inLanes_; }  // the last build()'s contact rows were
+  // A5's sweep in lanes: asked before build(), which grants it when the rows are formulated in
+  // lanes, warm, with contact blocks and no joints. Granted, the groups are laid out in the runs
+  // of the step's order (LaneRuns) and kept, rows and all, for the stepper to sweep in place
+  // (laneGroups(); their block indices numbered); else there are none.
+  void askLaneGroups(bool ask) { laneGroupsAsked_ = ask; }
+  std::vector<lanes::RigidGroup>& laneGroups() { return laneGroups_; }
+  int laneRunCount() const { return runCount_; }
   // Asks the cache for manifold k's rows, or deferred for what formulateManifold(k) reads (a caller
   // taking the manifolds out of their order does, a few ahead, when they outgrow the cache); and
   // how many bytes that is for all the manifolds.
@@ -160,7 +169,16 @@ class ConstraintSet {
   // Manifolds [first, last)'s rows, couplings and (blocksInLanes_) blocks into laneBlocks_, eight
   // at a time (contact_lanes.cpp).
   void formulateManifoldsInLanes(size_t first, size_t last);
-  bool lanesAsked_ = true, inLanes_ = false, blocksInLanes_ = false;
+  void formulateLaneGroups();  // the runs' groups into laneGroups_
+  // The group of the listed manifolds (count of them) into g, and their rows, couplings and blocks.
+  void formulateGroup(const int* manifolds, int count, const lanes::Formulation& f, lanes::ManifoldLanes& in,
+                      lanes::RigidGroup& g);
+  lanes::Formulation laneFormulation() const;
+  bool lanesAsked_ = true, inLanes_ = false, blocksInLanes_ = false, laneGroupsAsked_ = false;
+  LaneRuns laneRuns_;
+  std::vector<lanes::RigidGroup> laneGroups_;
+  std::vector<int> laneGroupStart_;  // each group's first place in laneRuns_.manifolds(); one past the last
+  int runCount_ = 0;
   std::vector<BlockData> laneBlocks_;  // per manifold: its contact block, until finishAll numbers them
 
   const Model* model_ = nullptr;

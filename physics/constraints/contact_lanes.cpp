@@ -3,7 +3,8 @@
 // formulateFriction, finishRow, frictionCoupling and formBlock side by side, in their order of
 // operations), and copied into the rows, couplings and blocks formulateManifold and finishUnit
 // would have written: every number the same to the last bit (tests/test_lanes.cpp). What is not
-// arithmetic (bodies, bounds, flags, the warm-start λ) is set here, as formulateManifold sets it.
+// arithmetic (bodies, flags) is set here, as formulateManifold sets it. Asked for lane groups
+// (askLaneGroups), the groups are the runs of the step's order and are kept for the sweep.
 #include "physics/constraints/constraint_set.h"
 #include "physics/steppers/soft_lanes_fill.h"
 
@@ -13,94 +14,147 @@ namespace substep {
 
 namespace {
 
-// Lane l of a formed row into a stored one, with the bodies' scaled inverse masses (finishRow's).
-void copyFormed(const lanes::FormedRow& from, int l, int a, int b, double mA, double mB, Row& to) {
+// Lane l of group g's row into a stored one, with M̌⁻¹J̌ᵀ as finishRow makes it.
+void copyRow(const lanes::RigidGroup& g, const lanes::RigidRowLanes& from, int l, Row& to) {
   resetRowState(to);
-  to.a = a;
-  to.b = b;
+  to.a = g.a[l];
+  to.b = g.b[l];
   for (int i = 0; i < 3; ++i) {
     to.lin[i] = from.lin[i].x[l];
     to.angA[i] = from.angA[i].x[l];
     to.angB[i] = from.angB[i].x[l];
-    to.mAngA[i] = from.mAngA[i].x[l];
-    to.mAngB[i] = from.mAngB[i].x[l];
+    to.mAngA[i] = g.scale * (g.invIA[i].x[l] * to.angA[i]);
+    to.mAngB[i] = g.scale * (g.invIB[i].x[l] * to.angB[i]);
   }
-  to.mA = mA;
-  to.mB = mB;
+  to.mA = g.mA.x[l];  // applyScale_ times the bodies' inverse masses
+  to.mB = g.mB.x[l];
   to.effMass = from.effMass.x[l];
+  to.bias = from.bias.x[l];
+  to.lambda = from.lambda.x[l];
 }
 
 }  // namespace
 
-void ConstraintSet::formulateManifoldsInLanes(size_t first, size_t last) {
-  if (first == last) return;
-  const lanes::Kernel& kernel = lanes::kernel();
+lanes::Formulation ConstraintSet::laneFormulation() const {
   lanes::Formulation f = lanes::formulation(*this, h_);
   f.scale = applyScale_;
   f.unscale = 1 / applyScale_;  // finishUnit's unscale of a contact block's rows
-  f.bodiesFrame = !frictions[first].worldFrame;
+  f.bodiesFrame = !frictions.empty() && !frictions[0].worldFrame;
   f.blocks = blocksInLanes_;
-  // Not zero-filled: a lane not in use is given the group's first manifold, so that no lane
-  // computes on what the stack held.
-  lanes::ManifoldLanes in;
+  f.warm = warm_;
+  return f;
+}
+
+void ConstraintSet::formulateGroup(const int* manifolds, int count, const lanes::Formulation& f, lanes::ManifoldLanes& in,
+                                   lanes::RigidGroup& g) {
   lanes::MassLanes m;
-  lanes::FormedManifold out;
-  for (size_t g = first; g < last; g += lanes::kLanes) {
-    const int count = static_cast<int>(std::min<size_t>(lanes::kLanes, last - g));
-    for (int l = 0; l < lanes::kLanes; ++l) {
-      const size_t k = g + static_cast<size_t>(l < count ? l : 0);
-      const FrictionDef& fd = frictions[k];
-      lanes::gatherManifold(*this, k, l, in);
-      const BodyMass& A = (*mass_)[static_cast<size_t>(fd.a)];
-      const BodyMass& B = (*mass_)[static_cast<size_t>(fd.b)];
-      m.mA.x[l] = A.invMass;
-      m.mB.x[l] = B.invMass;
-      for (int i = 0; i < 3; ++i) {
-        m.invIA[i].x[l] = A.invI[i];
-        m.invIB[i].x[l] = B.invI[i];
-      }
+  g.count = count;
+  g.normals = 0;
+  for (int l = 0; l < lanes::kLanes; ++l) {
+    // A lane not in use reads the group's first manifold, with no points: zero rows and masses.
+    const size_t k = static_cast<size_t>(manifolds[l < count ? l : 0]);
+    const FrictionDef& fd = frictions[k];
+    lanes::gatherManifold(*this, k, l, in);
+    if (l >= count) in.normals[l] = 0;
+    const BodyMass& A = (*mass_)[static_cast<size_t>(fd.a)];
+    const BodyMass& B = (*mass_)[static_cast<size_t>(fd.b)];
+    m.mA.x[l] = A.invMass;
+    m.mB.x[l] = B.invMass;
+    for (int i = 0; i < 3; ++i) {
+      m.invIA[i].x[l] = A.invI[i];
+      m.invIB[i].x[l] = B.invI[i];
     }
-    kernel.formulateRows(in, m, out, f);
-    for (int l = 0; l < count; ++l) {
-      const size_t k = g + static_cast<size_t>(l);
-      const FrictionDef& fd = frictions[k];
-      const ContactDef* c = &contacts[static_cast<size_t>(manifoldPoint_[k])];
-      Row* r = rows.data() + manifoldRow_[k];
-      const double mA = applyScale_ * (*mass_)[static_cast<size_t>(fd.a)].invMass;
-      const double mB = applyScale_ * (*mass_)[static_cast<size_t>(fd.b)].invMass;
-      for (int q = 0; q < fd.normalCount; ++q) {
-        Row& row = r[q];
-        copyFormed(out.normal[q], l, fd.a, fd.b, mA, mB, row);
-        row.bias = out.bias[q].x[l];
-        row.lo = 0;
-        row.hi = kInfinity;
-        row.lambda = warm_ ? c[q].lastLambda : 0.0;
-        row.speculative = row.bias < 0 && speculative_;  // formulateManifold's rule
-        if (row.bias < 0 && !speculative_) row.hi = row.lambda = 0;
-      }
-      Row* fr = r + fd.normalCount;
-      for (int i = 0; i < 3; ++i) {
-        Row& row = fr[i];
-        copyFormed(out.friction[i], l, fd.a, fd.b, mA, mB, row);
-        const double mu = i < 2 ? fd.mu : fd.mu * fd.radius;
-        row.velocityLevel = exempt_;
-        row.bias = 0;
-        row.lo = -mu;
-        row.hi = mu;
-        row.normalRow = fd.firstNormal;
-        row.normalCount = fd.normalCount;
-        row.lambda = !warm_ ? 0.0 : i < 2 ? out.carried[i].x[l] : fd.lastTwist;
-      }
-      couplings[k] = {out.g10.x[l], out.g20.x[l], out.g21.x[l]};
-      if (!blocksInLanes_ || fd.normalCount < 2) continue;
-      BlockData& d = laneBlocks_[k];
-      for (int col = 0; col < lanes::kMaxNormals; ++col)
-        for (int row = 0; row < lanes::kMaxNormals; ++row) {
-          d.K(row, col) = out.K[row][col].x[l];
-          d.invK(row, col) = out.invK[row][col].x[l];
-        }
-    }
+    g.manifold[l] = static_cast<int>(k);
+    g.a[l] = fd.a;
+    g.b[l] = fd.b;
+    g.points[l] = in.normals[l];
+    g.block[l] = -1;  // numbered by finishAll
+    g.normals = std::max(g.normals, in.normals[l]);
   }
+  lanes::BlockLanes blocks;
+  lanes::kernel().formulateRows(in, m, g, blocks, f);
+  for (int l = 0; l < count; ++l) {
+    const size_t k = static_cast<size_t>(manifolds[l]);
+    const FrictionDef& fd = frictions[k];
+    Row* r = rows.data() + manifoldRow_[k];
+    for (int q = 0; q < fd.normalCount; ++q) {
+      Row& row = r[q];
+      copyRow(g, g.normal[q], l, row);
+      row.lo = 0;
+      row.hi = kInfinity;
+      row.speculative = row.bias < 0 && speculative_;  // formulateManifold's rule (λ already 0)
+      if (row.bias < 0 && !speculative_) row.hi = 0;
+    }
+    Row* fr = r + fd.normalCount;
+    for (int i = 0; i < 3; ++i) {
+      Row& row = fr[i];
+      copyRow(g, g.friction[i], l, row);
+      row.velocityLevel = exempt_;
+      row.lo = -g.mu[i].x[l];
+      row.hi = g.mu[i].x[l];
+      row.normalRow = fd.firstNormal;
+      row.normalCount = fd.normalCount;
+    }
+    couplings[k] = {g.g10.x[l], g.g20.x[l], g.g21.x[l]};
+    if (!blocksInLanes_ || fd.normalCount < 2) continue;
+    BlockData& d = laneBlocks_[k];
+    for (int col = 0; col < lanes::kMaxNormals; ++col)
+      for (int row = 0; row < lanes::kMaxNormals; ++row) {
+        d.K(row, col) = blocks.K[row][col].x[l];
+        d.invK(row, col) = g.invK[row][col].x[l];
+      }
+  }
+}
+
+void ConstraintSet::formulateManifoldsInLanes(size_t first, size_t last) {
+  if (first == last) return;
+  const lanes::Formulation f = laneFormulation();
+  // Not zero-filled: every lane is gathered before the kernel reads it.
+  lanes::ManifoldLanes in;
+  lanes::RigidGroup g;
+  int manifolds[lanes::kLanes];
+  for (size_t at = first; at < last; at += lanes::kLanes) {
+    const int count = static_cast<int>(std::min<size_t>(lanes::kLanes, last - at));
+    for (int l = 0; l < count; ++l) manifolds[l] = static_cast<int>(at) + l;
+    formulateGroup(manifolds, count, f, in, g);
+  }
+}
+
+void ConstraintSet::formulateLaneGroups() {
+  laneRuns_.order(frictions, *mass_);
+  const std::vector<int>& order = laneRuns_.manifolds();
+  const std::vector<int>& start = laneRuns_.starts();
+  laneGroupStart_.clear();
+  for (size_t r = 0; r + 1 < start.size(); ++r)
+    for (int at = start[r]; at < start[r + 1]; at += lanes::kLanes) laneGroupStart_.push_back(at);
+  laneGroupStart_.push_back(start.back());
+  runCount_ = static_cast<int>(start.size()) - 1;
+  const size_t groups = laneGroupStart_.size() - 1;
+  laneGroups_.resize(groups);
+  const lanes::Formulation f = laneFormulation();
+  // The groups take the manifolds in the runs' order, which no hardware prefetch follows: the
+  // next group's definitions and rows are asked for while this one is formulated.
+  const auto prefetch = [&](size_t gi) {
+    for (int at = laneGroupStart_[gi]; at < laneGroupStart_[gi + 1]; ++at) {
+      const size_t k = static_cast<size_t>(order[static_cast<size_t>(at)]);
+      __builtin_prefetch(&frictions[k]);
+      __builtin_prefetch(reinterpret_cast<const char*>(&frictions[k]) + 64);
+      __builtin_prefetch(reinterpret_cast<const char*>(&frictions[k]) + 128);
+      const char* c = reinterpret_cast<const char*>(&contacts[static_cast<size_t>(manifoldPoint_[k])]);
+      const char* end = reinterpret_cast<const char*>(&contacts[static_cast<size_t>(manifoldPoint_[k + 1])]);
+      for (; c < end; c += 64) __builtin_prefetch(c);
+    }
+  };
+  parallel(groups, 8, [&](size_t first, size_t last) {
+    lanes::ManifoldLanes in;
+    for (size_t gi = first; gi < last; ++gi) {
+      if (gi + 1 < last) prefetch(gi + 1);
+      const int at = laneGroupStart_[gi];
+      // A group ends where its run does: the next group starts there.
+      int count = std::min(lanes::kLanes, laneGroupStart_[gi + 1] - at);
+      formulateGroup(order.data() + at, count, f, in, laneGroups_[gi]);
+    }
+  });
 }
 
 }  // namespace substep

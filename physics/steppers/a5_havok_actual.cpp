@@ -19,6 +19,7 @@
 // report's IV.4.1: only the 'stable' rows', recomputed while micro-iterating at the coordinates
 // the running velocity predicts for the sub-step's end (JacobianRefresh::Stable).
 #include "physics/constraints/joints.h"
+#include "physics/steppers/soft_lanes.h"
 #include "physics/steppers/stepper.h"
 
 namespace substep {
@@ -55,7 +56,11 @@ class HavokActualStepper final : public Stepper {
     WorkerPool& pool = c.workers();
     parts_.resize(static_cast<size_t>(pool.threads()));
     for (PartScratch& s : parts_) s.residual = 0;
-    if (stableOnly) {
+    // In lanes (SolverSettings::lanes), on one thread: warm, with the contact rows held (no joints)
+    // and a manifold's normals a block (or one single row), the whole step at once, its manifolds
+    // eight at a time in the runs of the step's order; the same numbers as island by island.
+    inLanes_ = !cs.laneGroups().empty() && pool.threads() == 1;  // asked for by asksLaneGroups
+    if (stableOnly || inLanes_) {
       solvePart(c, cs.whole(nb), stableOnly, parts_[0]);
     } else if (pool.threads() == 1 || cs.islandCount() == 1) {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly, parts_[0]);
@@ -77,6 +82,9 @@ class HavokActualStepper final : public Stepper {
   }
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
+  bool asksLaneGroups(const SolverSettings& st, int threads) const override {
+    return st.lanes && st.warmStart && st.contactBlocks && threads == 1;
+  }
 
  private:
   // Sub-steps 1..n of one part of the step (an island, or all of it).
@@ -119,6 +127,7 @@ class HavokActualStepper final : public Stepper {
       }
       r.lambda *= invKappa;  // warm-started impulses, as λ̄
     });
+    if (inLanes_) prepareLanes(c, ratio, invKappa);
     for (int j = 0; j < n; ++j) {
       startSubStepImpulses(c, j, part);
       // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step, and š stays zero when τ = 0.
@@ -127,17 +136,19 @@ class HavokActualStepper final : public Stepper {
         for (const Refreshed& f : targets) {
           Row& r = cs.rows[f.row];
           r.bias = f.base + rowVelocity(r, sumV_.data(), sumW_.data());
+          if (inLanes_) *biasLane_[f.row - static_cast<size_t>(cs.contactFirstRow)] = r.bias;
         }
       for (const Refreshed& f : speculative) {
         Row& r = cs.rows[f.row];
         const double shift = shifted ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;                // J̌šʲ
         const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
         r.bias = (beta < 0 ? beta : tau * beta) * invKappa + shift;
+        if (inLanes_) *biasLane_[f.row - static_cast<size_t>(cs.contactFirstRow)] = r.bias;
       }
       for (int i = 0; i < m && part.units.count > 0; ++i) {
         if (stableOnly) predictStableRows(c);
         const bool last = j + 1 == n && i + 1 == m;  // the step reports its last sweep's residual
-        const double change = sweep(cs, part.units, c.v, c.w, SweepScales{}, last);
+        const double change = inLanes_ ? sweepLanes(c, last) : sweep(cs, part.units, c.v, c.w, SweepScales{}, last);
         if (last) scratch.residual = std::max(scratch.residual, change);
       }
       endSubStepImpulses(c, part);
@@ -165,10 +176,76 @@ class HavokActualStepper final : public Stepper {
         }
       }
     }
+    if (inLanes_) emptyLanes(c);
     forEach(part.rows, [&](size_t q) {
       Row& r = cs.rows[q];
       if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
     });
+  }
+
+  // The lanes ConstraintSet::build formulated (laneGroups) as the prologue leaves the rows: β̄ =
+  // (τ/κ)β and λ̄ = λ/κ, the same products; every contact row's bias lane noted, for the refreshes
+  // between sub-steps.
+  void prepareLanes(StepContext& c, double ratio, double invKappa) {
+    ConstraintSet& cs = *c.constraints;
+    std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
+    biasLane_.assign(cs.rows.size() - static_cast<size_t>(cs.contactFirstRow), nullptr);
+    c.stats.laneRuns = cs.laneRunCount();
+    c.stats.laneGroups = static_cast<int>(groups.size());
+    const size_t rowBase = static_cast<size_t>(cs.contactFirstRow);
+    for (lanes::RigidGroup& g : groups) {
+      const auto scale = [&](lanes::RigidRowLanes& r) {
+        for (int l = 0; l < lanes::kLanes; ++l) {
+          r.bias.x[l] *= ratio;
+          r.lambda.x[l] *= invKappa;
+        }
+      };
+      for (lanes::RigidRowLanes& r : g.normal) scale(r);
+      for (lanes::RigidRowLanes& r : g.friction) scale(r);
+      for (int l = 0; l < g.count; ++l) {
+        const FrictionDef& f = cs.frictions[static_cast<size_t>(g.manifold[l])];
+        for (int q = 0; q < f.normalCount; ++q)
+          biasLane_[static_cast<size_t>(f.firstNormal + q) - rowBase] = &g.normal[q].bias.x[l];
+        for (int i = 0; i < 3; ++i) biasLane_[static_cast<size_t>(f.row + i) - rowBase] = &g.friction[i].bias.x[l];
+      }
+    }
+  }
+
+  // The lanes' λ and pushed back to the rows, as the sweeps left them.
+  void emptyLanes(StepContext& c) {
+    ConstraintSet& cs = *c.constraints;
+    for (const lanes::RigidGroup& g : cs.laneGroups())
+      for (int l = 0; l < g.count; ++l) {
+        const FrictionDef& f = cs.frictions[static_cast<size_t>(g.manifold[l])];
+        for (int q = 0; q < f.normalCount; ++q) {
+          Row& r = cs.rows[static_cast<size_t>(f.firstNormal + q)];
+          r.lambda = g.normal[q].lambda.x[l];
+          r.pushed = g.normal[q].pushed.x[l] != 0;
+        }
+        for (int i = 0; i < 3; ++i) {
+          Row& r = cs.rows[static_cast<size_t>(f.row + i)];
+          r.lambda = g.friction[i].lambda.x[l];
+          r.pushed = g.friction[i].pushed.x[l] != 0;
+        }
+      }
+  }
+
+  // One sweep in lanes, in the units' order: every manifold's friction, then every block (split
+  // order, warm), or each manifold's block and then its friction (manifold order).
+  double sweepLanes(StepContext& c, bool measure) {
+    const lanes::Kernel& k = lanes::kernel();
+    double* v = c.v.data()->data();
+    double* w = c.w.data()->data();
+    const lanes::BlockFallback fallback{&searchBlock, c.constraints};
+    std::vector<lanes::RigidGroup>& g = c.constraints->laneGroups();
+    if (c.settings->contactOrder == ContactOrder::Manifold)
+      return k.solveRigid(g.data(), 0, g.size(), v, w, lanes::RigidPhase::BlocksThenFriction, measure, fallback);
+    const double friction = k.solveRigid(g.data(), 0, g.size(), v, w, lanes::RigidPhase::Friction, measure, fallback);
+    return std::max(friction, k.solveRigid(g.data(), 0, g.size(), v, w, lanes::RigidPhase::Blocks, measure, fallback));
+  }
+  static void searchBlock(void* set, int block, int points, const double* lambda, const double* b, double* delta) {
+    ConstraintSet& cs = *static_cast<ConstraintSet*>(set);
+    solveContactBlock(cs.blocks[static_cast<size_t>(block)], points, lambda, b, delta);
   }
 
   // The 'stable' parts of every joint (joints.h: unbounded rows), for JacobianRefresh::Stable.
@@ -217,6 +294,8 @@ class HavokActualStepper final : public Stepper {
     const ConstraintSet::JointRef* ref;
     int offset, size;
   };
+  bool inLanes_ = false;
+  std::vector<double*> biasLane_;  // per contact row (from contactFirstRow): its bias's lane
   std::vector<PartScratch> parts_;  // per thread
   std::vector<Vec3> sumV_, sumW_;  // 'SumVelocity' š, linear and angular
   std::vector<Vec3> rawV_, rawW_;  // Σ_{k<j} v̌ᵏ unscaled: speculative rows' βʲ

@@ -1,6 +1,6 @@
 // The soft step's contact solve, eight manifolds at a time (Box2D v3's wide contact solver,
 // contact_solver.c, in 3D and in doubles). Eight manifolds that share no body that moves (of one
-// colour, or of one run of the step's order: SoftStepper::orderRuns) are solved side by side,
+// colour, or of one run of the step's order: LaneRuns, lane_runs.h) are solved side by side,
 // each in a lane of the same instructions: the sweep's work a manifold is the same, its
 // instructions an eighth with AVX-512 (a quarter with AVX2 and the baseline, which solve a group
 // as two parts of four). Each lane does what the soft step's one-manifold solve does
@@ -99,32 +99,16 @@ struct Formulation {
   double hBuild, hSub, slop;
   bool speculative;
   // formulateRows only: the scale of M̌⁻¹J̌ᵀ (ConstraintSet::build's applyScale, > 0) and its
-  // inverse as formBlock takes it; the frame; whether contact blocks' K and K⁻¹ are wanted.
+  // inverse as formBlock takes it; the frame; whether contact blocks' K and K⁻¹ are wanted; and
+  // whether λ starts warm.
   double scale = 1, unscale = 1;
-  bool bodiesFrame = false, blocks = false;
+  bool bodiesFrame = false, blocks = false, warm = false;
 };
 
-// Rows as the set stores them, eight manifolds at a time (Kernel::formulateRows): what
-// formulateContact, formulateFriction, finishRow, frictionCoupling and formBlock compute, the same
-// numbers; the rest of a Row (bodies, bounds, flags, λ) is copied or set where they are stored.
+// The inverse masses of a group's bodies, a lane each, for Kernel::formulateRows.
 struct MassLanes {
-  Doubles mA, mB;              // inverse masses [1/kg]
+  Doubles mA, mB;              // [1/kg]
   Doubles invIA[3], invIB[3];  // M̌⁻¹, rotational [1/(kg m²)]
-};
-struct FormedRow {
-  Doubles lin[3], angA[3], angB[3];  // J̌
-  Doubles mAngA[3], mAngB[3];        // M̌⁻¹J̌ᵀ, rotational, scaled
-  Doubles effMass;                   // unscaled
-};
-struct FormedManifold {
-  FormedRow normal[kMaxNormals];
-  Doubles bias[kMaxNormals];  // β = -(C + slop) / h [m/s]
-  FormedRow friction[3];      // t1, t2, twist
-  Doubles carried[2];         // the tangential warm start on this step's tangents [N s]
-  Doubles g10, g20, g21;      // FrictionCoupling, scaled
-  // The contact block of the lane's points (Formulation::blocks): K (unscaled, zero outside the
-  // points) and K⁻¹ of K regularised (identity outside the points; all zero where it failed).
-  Doubles K[kMaxNormals][kMaxNormals], invK[kMaxNormals][kMaxNormals];
 };
 
 // A sweep's pass: the solve (soft, with position feedback) or the relax (rigid, none).
@@ -133,6 +117,50 @@ struct Pass {
   double h;        // the sub-step [s]
   double pushOut;  // [m/s]
 };
+
+// A group of eight manifolds' stored rows, as Kernel::formulateRows makes them (formulateContact,
+// formulateFriction, finishRow, frictionCoupling and formBlock side by side, the same numbers);
+// ConstraintSet::build copies them to its rows, couplings and blocks, and, laid out in the runs of
+// the step's order (ConstraintSet::laneGroups), A5 sweeps them in place: a manifold's Friction unit
+// and its contact block (or, with one point, its single normal row) as sweep() solves them
+// (stepper.cpp: solveUnit with A5's SweepScales, all 1; M̌⁻¹J̌ᵀ scaled by κ and stored), each lane
+// operation for operation in the same order: the same numbers. λ and pushed go back to the rows
+// when the step's sweeps are done.
+// M̌⁻¹J̌ᵀ is not stored: the group's scaled inverse masses times J̌ (finishRow's products).
+struct RigidRowLanes {
+  Doubles lin[3], angA[3], angB[3];  // J̌
+  Doubles effMass, bias, lambda;
+  Mask pushed;
+};
+struct RigidGroup {
+  int count = 0;   // lanes in use; the others are zero rows (no points) that change nothing
+  int normals = 0;  // the most points of a lane
+  int manifold[kLanes] = {}, a[kLanes] = {}, b[kLanes] = {};
+  int points[kLanes] = {};
+  int block[kLanes] = {};  // the lane's BlockData (ConstraintSet::blocks), with two or more points
+  Doubles mA, mB;          // the rows' translational M̌⁻¹J̌ᵀ factors (scaled); zero: the body does not move
+  Doubles invIA[3], invIB[3];  // M̌⁻¹, rotational: the rows' M̌⁻¹J̌ᵀ is scale (M̌⁻¹ ∘ ang) (finishRow's)
+  double scale = 1;
+  Mask single;             // one point: its normal is a single row (bounds [0, singleHi]), not a block
+  Doubles singleHi;
+  RigidRowLanes normal[kMaxNormals], friction[3];
+  Doubles mu[3];  // the friction rows' bounds: ±mu Σλn
+  Doubles g10, g20, g21;
+  // The contact block's K⁻¹ (Formulation::blocks): of K regularised, identity outside the lane's
+  // points; all zero where it failed.
+  Doubles invK[kMaxNormals][kMaxNormals];
+};
+// ... and its K (unscaled, zero outside the points), which only the scalar search reads.
+struct BlockLanes {
+  Doubles K[kMaxNormals][kMaxNormals];
+};
+// A block lane that neither stays idle nor fits with every point pushing is solved by the scalar
+// active-set search (stepper.cpp, solveContactBlock) on its BlockData.
+struct BlockFallback {
+  void (*solve)(void* context, int block, int points, const double* lambda, const double* b, double* delta);
+  void* context;
+};
+enum class RigidPhase { Blocks, Friction, BlocksThenFriction };
 
 // Velocities v, w: three doubles a body (world linear, body-frame angular); dpV, dpW: Σ h v̌ᵏ of
 // the sub-steps so far, the same way.
@@ -147,9 +175,15 @@ struct Kernel {
   // make them (scale 1), and λ warm: every number the same to the last bit. Reads the group's
   // count and inverse masses; lanes not in use, and points a lane does not have, are zero rows.
   void (*formulate)(const ManifoldLanes& in, Group& g, const Formulation& f);
-  // Stored rows of eight manifolds (up to the most points a lane has; the caller copies the ones
-  // each lane has), in the world or the bodies' frame, scaled by f.scale.
-  void (*formulateRows)(const ManifoldLanes& in, const MassLanes& m, FormedManifold& out, const Formulation& f);
+  // Stored rows of eight manifolds, in the world or the bodies' frame, scaled by f.scale: every
+  // row lane, mass, bound and block but the bodies and block indices (a lane's points from
+  // in.normals, 0 for a lane not in use: zero rows and masses).
+  void (*formulateRows)(const ManifoldLanes& in, const MassLanes& m, RigidGroup& out, BlockLanes& K,
+                        const Formulation& f);
+  // A5's sweep over groups [first, last) in order: each group's blocks, its friction, or both (in
+  // that order). Returns the largest velocity change of a row when measure is set (else 0).
+  double (*solveRigid)(RigidGroup* groups, size_t first, size_t last, double* v, double* w, RigidPhase phase,
+                       bool measure, const BlockFallback& fallback);
   const char* name;  // "avx512", "avx2" or "sse2"
 };
 

@@ -22,10 +22,11 @@
 // threads. Within a colour no manifold reads what another writes, so the trajectory is the same
 // to the last bit for any number of threads. The manifolds are solved eight at a time in SIMD lanes
 // (soft_lanes.h, SolverSettings::lanes) in runs that share no moving body: the colours, or
-// uncoloured runs of the step's order (orderRuns), which give its numbers to the last bit;
+// uncoloured runs of the step's order (LaneRuns), which give its numbers to the last bit;
 // a run's groups go to the threads. Without the lanes (or in a split contact order) one manifold
 // at a time, uncoloured the islands to the threads island by island: the same trajectory again.
 #include "physics/steppers/soft_lanes.h"
+#include "physics/constraints/lane_runs.h"
 #include "physics/steppers/soft_lanes_fill.h"
 #include "physics/steppers/stepper.h"
 
@@ -33,7 +34,6 @@
 #include <cassert>
 #include <cmath>
 #include <cstdint>
-#include <unistd.h>
 
 namespace substep {
 
@@ -233,93 +233,10 @@ class SoftStepper final : public Stepper {
       f(ci == ConstraintSet::kColours ? ci : ConstraintSet::kColours - 1 - ci);
   }
 
-  // The sweep's runs: the step's order of the manifolds (the uncoloured sweep's) cut into runs
-  // that can be solved at once without changing a bit of it. The sequential sweep gives a
-  // manifold each moving body's velocity as the manifold before it on that body left it: so it
-  // may be solved once those (its chains' previous, one a body) are, and at once with any other
-  // manifold ready then, since two ready manifolds share no moving body (the later would wait
-  // for the earlier). Each run takes the ready manifolds, those with the longest chain of
-  // manifolds waiting behind them first, and when there are more than a group's eight, a whole
-  // number of groups of them: the rest wait for the next run, so that the lanes are full (a group
-  // costs the same with one lane in use as with eight; docs/algorithms.md, "Lanes and runs").
-  // Within a run the manifolds keep the step's order.
-  void orderRuns(StepContext& c) {
-    const ConstraintSet& cs = *c.constraints;
-    const size_t count = cs.frictions.size();
-    // The runs follow from the manifolds' bodies in the step's order and which of those move
-    // (storeMoving's test): a step with the same list as the last (a settled scene, whose pairs
-    // stay) keeps last step's runs.
-    const auto side = [&](int body) {  // the body, or its complement when it does not move
-      return static_cast<uint32_t>(c.mass[static_cast<size_t>(body)].invMass == 0 ? ~body : body);
-    };
-    runKey_.resize(count);
-    for (size_t k = 0; k < count; ++k) runKey_[k] = uint64_t{side(cs.frictions[k].a)} << 32 | side(cs.frictions[k].b);
-    // (No step's key is empty: the lanes are used only with manifolds.)
-    if (runKey_ == lastRunKey_) return;
-    runKey_.swap(lastRunKey_);
-    // Each manifold's successors (the next on each of its moving bodies), how many predecessors
-    // it waits for, and the longest chain from it to the sweep's end.
-    lastOn_.assign(c.bodies(), -1);
-    after_.assign(2 * count, -1);
-    waiting_.assign(count, 0);
-    for (size_t k = 0; k < count; ++k) {
-      const FrictionDef& f = cs.frictions[k];
-      // storeMoving's test: the rows' M̌⁻¹ is the body's (scale 1), zero for static and sleeping ones.
-      int prev[2] = {-1, -1};
-      for (int side = 0; side < 2; ++side) {
-        const size_t body = static_cast<size_t>(side ? f.b : f.a);
-        if (c.mass[body].invMass == 0) continue;
-        prev[side] = lastOn_[body];
-        if (prev[side] >= 0) {
-          const size_t p = static_cast<size_t>(prev[side]);
-          after_[2 * p + (cs.frictions[p].b == static_cast<int>(body))] = static_cast<int>(k);  // the slot of p's side
-        }
-        lastOn_[body] = static_cast<int>(k);
-      }
-      waiting_[k] = (prev[0] >= 0) + (prev[1] >= 0 && prev[1] != prev[0]);
-    }
-    chain_.resize(count);
-    for (size_t k = count; k-- > 0;) {
-      int longest = 0;
-      for (size_t slot = 2 * k; slot < 2 * k + 2; ++slot)
-        if (after_[slot] >= 0) longest = std::max(longest, chain_[static_cast<size_t>(after_[slot])]);
-      chain_[k] = longest + 1;
-    }
-    runOrder_.clear();
-    runStart_.assign(1, 0);
-    ready_.clear();
-    for (size_t k = 0; k < count; ++k)
-      if (waiting_[k] == 0) ready_.push_back(static_cast<int>(k));
-    const size_t group = lanes::kLanes;
-    while (!ready_.empty()) {
-      size_t take = ready_.size();
-      if (take > group) {
-        // The first `take` by (longest chain, then the step's order): a selection, not a sort,
-        // since the keys are distinct and what is left over is ordered again next run.
-        take = take / group * group;
-        std::nth_element(ready_.begin(), ready_.begin() + static_cast<std::ptrdiff_t>(take), ready_.end(), [&](int x, int y) {
-          const int cx = chain_[static_cast<size_t>(x)], cy = chain_[static_cast<size_t>(y)];
-          return cx != cy ? cx > cy : x < y;
-        });
-      }
-      std::sort(ready_.begin(), ready_.begin() + static_cast<std::ptrdiff_t>(take));
-      waitingNext_.assign(ready_.begin() + static_cast<std::ptrdiff_t>(take), ready_.end());
-      for (size_t i = 0; i < take; ++i) {
-        const size_t k = static_cast<size_t>(ready_[i]);
-        runOrder_.push_back(static_cast<int>(k));
-        const int s0 = after_[2 * k], s1 = after_[2 * k + 1];
-        if (s0 >= 0 && --waiting_[static_cast<size_t>(s0)] == 0) waitingNext_.push_back(s0);
-        if (s1 >= 0 && s1 != s0 && --waiting_[static_cast<size_t>(s1)] == 0) waitingNext_.push_back(s1);
-      }
-      runStart_.push_back(static_cast<int>(runOrder_.size()));
-      ready_.swap(waitingNext_);
-    }
-    assert(runOrder_.size() == count);
-  }
 
   // The manifolds eight to a group (soft_lanes.h), in runs whose manifolds share no body that
   // moves, solved run after run: the colours (from the highest down, the overflow last, one to a
-  // group since its manifolds share bodies), or uncoloured the sweep's runs (orderRuns).
+  // group since its manifolds share bodies), or uncoloured the sweep's runs (LaneRuns).
   void buildLanes(StepContext& c) {
     const ConstraintSet& cs = *c.constraints;
     const Row* rows = cs.rows.data();
@@ -332,10 +249,11 @@ class SoftStepper final : public Stepper {
       groups += n;
     };
     if (cs.colourStart.empty()) {
-      orderRuns(c);
-      laneOrder_ = runOrder_.data();
-      for (size_t r = 0; r + 1 < runStart_.size(); ++r)
-        run(static_cast<size_t>(runStart_[r]), static_cast<size_t>(runStart_[r + 1] - runStart_[r]), false);
+      runs_.order(cs.frictions, c.mass);
+      laneOrder_ = runs_.manifolds().data();
+      const std::vector<int>& start = runs_.starts();
+      for (size_t r = 0; r + 1 < start.size(); ++r)
+        run(static_cast<size_t>(start[r]), static_cast<size_t>(start[r + 1] - start[r]), false);
     } else {
       const std::vector<int>& start = cs.colourStart;
       laneOrder_ = cs.colourOrder.data();
@@ -356,7 +274,7 @@ class SoftStepper final : public Stepper {
     const bool inLanes = deferred && c.settings->contactFrame == ContactFrame::World;
     const lanes::Formulation formulation = lanes::formulation(cs, h);
     const lanes::Kernel& kernel = lanes::kernel();
-    const bool ahead = outgrowsL2(cs.manifoldBytes());
+    const bool ahead = LaneRuns::outgrowsL2(cs.manifoldBytes());
     // inLanes: what the kernel formulates from, one a thread (zeroed once, so a lane not in use,
     // which the kernel makes zero rows of, holds numbers an earlier group left, not garbage).
     if (inLanes) definitions_.resize(static_cast<size_t>(c.workers().threads()));
@@ -370,8 +288,8 @@ class SoftStepper final : public Stepper {
       g.normals = 0;
       for (int l = 0; l < lanes::kLanes; ++l) {
         const size_t at = seg.order + first + static_cast<size_t>(l), end = seg.order + seg.count;
-        if (ahead && at + 2 * kAhead < end) __builtin_prefetch(&cs.frictions[static_cast<size_t>(order[at + 2 * kAhead])]);
-        if (ahead && at + kAhead < end) cs.prefetchManifold(static_cast<size_t>(order[at + kAhead]));
+        if (ahead && at + 2 * LaneRuns::kAhead < end) __builtin_prefetch(&cs.frictions[static_cast<size_t>(order[at + 2 * LaneRuns::kAhead])]);
+        if (ahead && at + LaneRuns::kAhead < end) cs.prefetchManifold(static_cast<size_t>(order[at + LaneRuns::kAhead]));
         // A lane not in use reads lane 0's bodies and, with zero rows and masses, writes nothing.
         const bool used = l < g.count;
         const size_t k = static_cast<size_t>(order[used ? at : seg.order + first]);
@@ -443,18 +361,6 @@ class SoftStepper final : public Stepper {
     to.pushed.x[l] = r && r->pushed ? -1 : 0;
   }
 
-  // buildLanes takes the manifolds in the runs' order, not in their rows' (or, formulating them,
-  // their definitions') order in memory, which no hardware prefetch follows. What outgrows the
-  // core's L2 cache comes from L3 or memory: kAhead manifolds on is then fetched while these are
-  // filled (docs/benchmarks.md).
-  static constexpr size_t kAhead = 2;
-  static bool outgrowsL2(size_t bytes) {
-    static const size_t l2 = [] {
-      const long size = sysconf(_SC_LEVEL2_CACHE_SIZE);
-      return size > 0 ? static_cast<size_t>(size) : size_t{1} << 20;
-    }();
-    return bytes > l2;
-  }
 
   // f(group, lane, its manifold's definition) for every lane in use, the groups on the threads.
   template <class F>
@@ -702,10 +608,8 @@ class SoftStepper final : public Stepper {
   std::vector<lanes::Group> groups_;
   std::vector<lanes::ManifoldLanes> definitions_;  // buildLanes's, a thread
   std::vector<Segment> segments_;
-  const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or runOrder_
-  std::vector<int> runOrder_, runStart_;                                     // orderRuns
-  std::vector<uint64_t> runKey_, lastRunKey_;  // orderRuns: each manifold's bodies, this step's and the runs'
-  std::vector<int> lastOn_, after_, waiting_, chain_, ready_, waitingNext_;  // orderRuns' scratch
+  const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or runs_'
+  LaneRuns runs_;
   static constexpr size_t kManifoldGrain = 32;  // manifolds of a colour a thread takes at a time
   static constexpr size_t kIslandGrain = 512;   // manifolds of whole islands a thread takes at a time
   Phase phases_[2] = {Phase::Both, Phase::Both};  // a sweep's passes over the manifolds (no allocation a step)

@@ -94,13 +94,9 @@ bool solveSmall(double (&A)[4][4], double (&x)[4], int n) {
 // smaller set by size.
 // k is the block's size, a template argument so that the common paths unroll.
 template <int k>
-void solveContactBlock(BlockData& d, const Row* rows, const double* b, double* delta) {
-  double lam[4];
+void solveContactBlock(BlockData& d, const double* lam, const double* b, double* delta) {
   bool idle = true;
-  for (int i = 0; i < k; ++i) {
-    lam[i] = rows[i].lambda;
-    idle = idle && lam[i] == 0 && b[i] <= 0;
-  }
+  for (int i = 0; i < k; ++i) idle = idle && lam[i] == 0 && b[i] <= 0;
   // Nothing pushes and nothing wants to: the empty set fits (w = -b >= 0, Δ = 0). A third of the
   // blocks on a standing pyramid (points apart, or lifted corners); enumerating the sets by size
   // found it last.
@@ -181,7 +177,9 @@ void solveBlockUnit(ConstraintSet& cs, const SolveUnit& u, Row* r, const SweepSc
       for (int j = 0; j < N; ++j) dl[i] += d.invK(i, j) * b[j];
     }
   } else {
-    solveContactBlock<N>(d, r, b, dl);
+    double lam[N];
+    for (int i = 0; i < N; ++i) lam[i] = r[i].lambda;
+    solveContactBlock<N>(d, lam, b, dl);
   }
   for (int i = 0; i < N; ++i) {
     if (dl[i] == 0) continue;
@@ -193,6 +191,14 @@ void solveBlockUnit(ConstraintSet& cs, const SolveUnit& u, Row* r, const SweepSc
 }
 
 }  // namespace
+
+void solveContactBlock(BlockData& d, int points, const double* lambda, const double* b, double* delta) {
+  switch (points) {
+    case 2: solveContactBlock<2>(d, lambda, b, delta); break;
+    case 3: solveContactBlock<3>(d, lambda, b, delta); break;
+    default: solveContactBlock<4>(d, lambda, b, delta); break;
+  }
+}
 
 SweepScales SweepScales::havok(const SolverSettings& s) {
   const double bt = s.motorUnscaled ? 1 : s.tau, vt = s.motorUnscaled ? 1 : s.kappa;

@@ -24,8 +24,8 @@ struct StepStats {
   int directMethod = 0;    // A1: what answered: 1 Dantzig, 2 Lemke, 3 Gauss-Seidel and polish
   double residual = 0;     // A1: MLCP residual [m/s]; A2: largest row velocity change in the last sweep
   int rows = 0;
-  int laneRuns = 0;        // soft: the runs its manifolds were solved in, eight at a time (0: one at a time)
-  int laneGroups = 0;      // soft: the groups of eight of those runs (a group's lanes not in use cost as much)
+  int laneRuns = 0;        // soft, a5: the runs its manifolds were solved in, eight at a time (0: one at a time)
+  int laneGroups = 0;      // soft, a5: the groups of eight of those runs (a group's lanes not in use cost as much)
 };
 
 // What a stepper works on during one step. The world fills it in s1/s2.
@@ -80,6 +80,9 @@ class Stepper {
   // Whether, under these settings, it formulates the contacts' rows itself as it solves them
   // (ConstraintSet::askDeferredContactRows).
   virtual bool formulatesContactRows(const SolverSettings&) const { return false; }
+  // Whether, under these settings and on this many threads, it sweeps the contacts in the lanes
+  // ConstraintSet::build lays out for it (ConstraintSet::askLaneGroups).
+  virtual bool asksLaneGroups(const SolverSettings&, int /*threads*/) const { return false; }
 };
 
 std::unique_ptr<Stepper> makeStepper(Algorithm a);
@@ -205,6 +208,11 @@ __attribute__((always_inline)) inline void solveFrictionUnit(const FrictionCoupl
 double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k, bool measure = true);
 double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k,
              bool measure = true);
+
+// A contact block of 2 to 4 points (BlockData): the increment Δ of its impulses λ for b = cBias β -
+// cVel J̌v̌, with λ + Δ >= 0 and KΔ - b >= 0 complementary to it (sweep's block solve; A5's lanes
+// ask it for the blocks where neither nothing nor everything pushing fits).
+void solveContactBlock(BlockData& d, int points, const double* lambda, const double* b, double* delta);
 
 // Restitution (an extension: the report has none), after the velocity solve as Box2D does it:
 // every contact point that was closing faster than the threshold at the step's start and pushed
