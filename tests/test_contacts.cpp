@@ -4,6 +4,7 @@
 #include "physics/scene_file.h"
 #include "physics/steppers/stepper.h"
 #include "physics/world.h"
+#include "row_compare.h"
 #include "step_inputs.h"
 
 #include <gtest/gtest.h>
@@ -375,22 +376,6 @@ static void poison(Row& r) {
   r.velocityLevel = r.velocityTarget = r.speculative = r.pushed = true;
 }
 
-// r and d equal field for field (what names them in a failure).
-static void expectSameRow(const Row& r, const Row& d, const std::string& what) {
-  EXPECT_EQ(r.a, d.a) << what;
-  EXPECT_EQ(r.b, d.b) << what;
-  for (const auto& [x, y] : {std::pair{r.lin, d.lin}, {r.angA, d.angA}, {r.angB, d.angB}, {r.mAngA, d.mAngA}, {r.mAngB, d.mAngB}})
-    EXPECT_EQ(x, y) << what;
-  for (const auto& [x, y] : {std::pair{r.mA, d.mA}, {r.mB, d.mB}, {r.effMass, d.effMass}, {r.bias, d.bias}, {r.lo, d.lo},
-                             {r.hi, d.hi}, {r.split, d.split}, {r.lambda, d.lambda}})
-    EXPECT_EQ(x, y) << what;
-  EXPECT_EQ(r.normalRow, d.normalRow) << what;
-  EXPECT_EQ(r.normalCount, d.normalCount) << what;
-  EXPECT_EQ(r.velocityLevel, d.velocityLevel) << what;
-  EXPECT_EQ(r.velocityTarget, d.velocityTarget) << what;
-  EXPECT_EQ(r.speculative, d.speculative) << what;
-  EXPECT_EQ(r.pushed, d.pushed) << what;
-}
 
 // A reset row is a default row, field for field (ConstraintSet::build reuses last step's rows).
 TEST(Rows, ResetRowIsADefaultRow) {

@@ -7,6 +7,7 @@
 #include "physics/steppers/soft_lanes.h"
 #include "physics/steppers/soft_lanes_fill.h"
 #include "physics/world.h"
+#include "row_compare.h"
 #include "step_inputs.h"
 
 #include <gtest/gtest.h>
@@ -39,6 +40,14 @@ Stepped trajectory(const Scene& s, SolverSettings st, int steps) {
     if (!r.finite) break;
   }
   return out;
+}
+
+// The kernels this processor runs: the baseline's, and AVX2's and AVX-512's where it has them.
+std::vector<const lanes::Kernel*> availableKernels() {
+  std::vector<const lanes::Kernel*> kernels = {&lanes::sse2Kernel()};
+  if (lanes::avx2Supported()) kernels.push_back(&lanes::avx2Kernel());
+  if (lanes::avx512Supported()) kernels.push_back(&lanes::avx512Kernel());
+  return kernels;
 }
 
 SolverSettings soft(const Scene& s, bool lanes, bool colours, bool warm) {
@@ -200,7 +209,6 @@ Scene rampScene() {
   return parseScene(json, "<test>", ".");
 }
 
-bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 // Lane l of row lanes `to` against row r (null: a zero row, +0 everywhere), the c0 or μ beside.
 void expectLane(const lanes::RowLanes& to, int l, const Row* r, const std::string& what) {
@@ -264,9 +272,7 @@ void expectGroupAsRows(const ConstraintSet& cs, const StepInputs& in, const lane
 // are zero rows.
 TEST(Lanes, TheKernelsFormulateAsTheRowsAre) {
   const Scene s = rampScene();
-  std::vector<const lanes::Kernel*> kernels = {&lanes::sse2Kernel()};
-  if (lanes::avx2Supported()) kernels.push_back(&lanes::avx2Kernel());
-  if (lanes::avx512Supported()) kernels.push_back(&lanes::avx512Kernel());
+  const std::vector<const lanes::Kernel*> kernels = availableKernels();
   for (bool speculative : {true, false}) {
     SolverOverrides o = s.solver;
     o.set(&SolverSettings::algorithm, Algorithm::Soft);
@@ -333,34 +339,6 @@ TEST(Lanes, PointsApartHoldNothingWithoutSpeculativeContacts) {
 
 namespace {
 
-void expectSameRow(const Row& lanes, const Row& one, const std::string& what) {
-  const auto same = [&](double a, double b, const char* field) {
-    EXPECT_TRUE(sameBits(a, b)) << what << " " << field << ": lanes " << a << ", one by one " << b;
-  };
-  EXPECT_EQ(lanes.a, one.a) << what;
-  EXPECT_EQ(lanes.b, one.b) << what;
-  for (int i = 0; i < 3; ++i) {
-    same(lanes.lin[i], one.lin[i], "lin");
-    same(lanes.angA[i], one.angA[i], "angA");
-    same(lanes.angB[i], one.angB[i], "angB");
-    same(lanes.mAngA[i], one.mAngA[i], "mAngA");
-    same(lanes.mAngB[i], one.mAngB[i], "mAngB");
-  }
-  same(lanes.mA, one.mA, "mA");
-  same(lanes.mB, one.mB, "mB");
-  same(lanes.effMass, one.effMass, "effMass");
-  same(lanes.bias, one.bias, "bias");
-  same(lanes.lo, one.lo, "lo");
-  same(lanes.hi, one.hi, "hi");
-  same(lanes.split, one.split, "split");
-  same(lanes.lambda, one.lambda, "lambda");
-  EXPECT_EQ(lanes.normalRow, one.normalRow) << what;
-  EXPECT_EQ(lanes.normalCount, one.normalCount) << what;
-  EXPECT_EQ(lanes.velocityLevel, one.velocityLevel) << what;
-  EXPECT_EQ(lanes.velocityTarget, one.velocityTarget) << what;
-  EXPECT_EQ(lanes.speculative, one.speculative) << what;
-  EXPECT_EQ(lanes.pushed, one.pushed) << what;
-}
 
 // Two sets built from the same inputs, contacts formulated in lanes by kernel k and one manifold
 // at a time: every row, friction coupling and contact block the same to the last bit.
@@ -408,9 +386,7 @@ void expectSameSets(const World& w, const SolverSettings& st, const lanes::Kerne
 // cold under A3, and in the world frame (the soft step one manifold at a time).
 TEST(Lanes, StoredRowsAreFormulatedInLanesAsOneAtATime) {
   const Scene s = rampScene();
-  std::vector<const lanes::Kernel*> kernels = {&lanes::sse2Kernel()};
-  if (lanes::avx2Supported()) kernels.push_back(&lanes::avx2Kernel());
-  if (lanes::avx512Supported()) kernels.push_back(&lanes::avx512Kernel());
+  const std::vector<const lanes::Kernel*> kernels = availableKernels();
   struct Case {
     const char* name;
     Algorithm algorithm;
@@ -452,9 +428,7 @@ TEST(Lanes, StoredRowsAreFormulatedInLanesAsOneAtATime) {
 // τ 0 and τ 0.2 (friction's bias refreshed in the lanes between sub-steps), in the manifold order,
 // and without speculative points (held points).
 TEST(Lanes, A5SweepsInLanesAsOneAtATime) {
-  std::vector<const lanes::Kernel*> kernels = {&lanes::sse2Kernel()};
-  if (lanes::avx2Supported()) kernels.push_back(&lanes::avx2Kernel());
-  if (lanes::avx512Supported()) kernels.push_back(&lanes::avx512Kernel());
+  const std::vector<const lanes::Kernel*> kernels = availableKernels();
   struct Case {
     const char* name;
     double tau;
