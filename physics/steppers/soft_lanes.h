@@ -18,7 +18,7 @@
 // The same kernel formulates the contact rows every other build stores (A1-A5, the soft step one
 // manifold at a time or with joints): Kernel::formulateRows, called by ConstraintSet::build
 // (physics/constraints/contact_lanes.cpp), in either contact frame, κ-scaled, with the contact
-// blocks' K and K⁻¹.
+// blocks' K and K⁻¹; and A5 sweeps those groups in place (Kernel::solveRigid, RigidGroup).
 //
 // No Eigen here: the kernel is compiled three times, for AVX-512, for AVX2 and for the baseline
 // x86-64 (SSE2), and the widest the processor runs is taken at run time. Inline functions shared
