@@ -426,7 +426,8 @@ TEST(Lanes, StoredRowsAreFormulatedInLanesAsOneAtATime) {
 // on the pyramid (four-point blocks, the active-set search where neither none nor all push) and the
 // ramp (one to four points: single rows beside blocks, normals past tangentBasis's switch), with
 // τ 0 and τ 0.2 (friction's bias refreshed in the lanes between sub-steps), in the manifold order,
-// and without speculative points (held points).
+// without speculative points (held points), and with split impulses (the penetrations' part of β
+// taken out of the rows the lanes start from) and restitution (every approach bounces).
 TEST(Lanes, A5SweepsInLanesAsOneAtATime) {
   const std::vector<const lanes::Kernel*> kernels = availableKernels();
   struct Case {
@@ -434,21 +435,30 @@ TEST(Lanes, A5SweepsInLanesAsOneAtATime) {
     double tau;
     ContactOrder order;
     bool speculative;
+    bool split = false;
+    double bounce = -1;  // the bodies' restitution, bouncing from any approach (-1: the scene's)
   };
   const Case cases[] = {
       {"pyramid.json's", 0, ContactOrder::Split, true},
       {"tau 0.2", 0.2, ContactOrder::Split, true},
       {"manifold order", 0, ContactOrder::Manifold, true},
       {"not speculative", 0, ContactOrder::Split, false},
+      {"split impulse", 0.6, ContactOrder::Split, true, true},
+      {"restitution", 0.2, ContactOrder::Split, true, false, 0.5},
   };
   const std::pair<const char*, Scene> scenes[] = {{"pyramid", scene("pyramid.json")}, {"ramp", rampScene()}};
-  for (const auto& [sceneName, s] : scenes)
+  for (const auto& [sceneName, original] : scenes)
     for (const Case& c : cases) {
+      Scene s = original;
+      if (c.bounce >= 0)
+        for (Body& b : s.model.bodies) b.restitution = c.bounce;
       const auto settings = [&](bool lanes) {
         SolverOverrides o = scene("pyramid.json").solver;  // a5, κ 0.85, warm, contact blocks
         o.set(&SolverSettings::tau, c.tau);
         o.set(&SolverSettings::contactOrder, c.order);
         o.set(&SolverSettings::speculative, c.speculative);
+        o.set(&SolverSettings::splitImpulse, c.split);
+        if (c.bounce >= 0) o.set(&SolverSettings::restitutionThreshold, 0.0);
         o.set(&SolverSettings::lanes, lanes);
         return resolve(o);
       };

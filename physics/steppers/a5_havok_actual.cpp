@@ -183,9 +183,10 @@ class HavokActualStepper final : public Stepper {
     });
   }
 
-  // The lanes ConstraintSet::build formulated (laneGroups) as the prologue leaves the rows: β̄ =
-  // (τ/κ)β and λ̄ = λ/κ, the same products; every contact row's bias lane noted, for the refreshes
-  // between sub-steps.
+  // The lanes ConstraintSet::build formulated (laneGroups) as the prologue leaves the rows: with
+  // split impulses the normals' penetration split off (splitPositionErrors), then β̄ = (τ/κ)β and
+  // λ̄ = λ/κ, the same operations; every contact row's bias lane noted, for the refreshes between
+  // sub-steps.
   void prepareLanes(StepContext& c, double ratio, double invKappa) {
     ConstraintSet& cs = *c.constraints;
     std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
@@ -194,6 +195,9 @@ class HavokActualStepper final : public Stepper {
     c.stats.laneGroups = static_cast<int>(groups.size());
     const size_t rowBase = static_cast<size_t>(cs.contactFirstRow);
     for (lanes::RigidGroup& g : groups) {
+      if (c.settings->splitImpulse)
+        for (int l = 0; l < g.count; ++l)
+          for (int q = 0; q < g.points[l]; ++q) splitOff(g.normal[q].bias.x[l]);
       const auto scale = [&](lanes::RigidRowLanes& r) {
         for (int l = 0; l < lanes::kLanes; ++l) {
           r.bias.x[l] *= ratio;

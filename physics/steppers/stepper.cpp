@@ -398,8 +398,7 @@ void splitPositionErrors(StepContext& c) {
   ConstraintSet& cs = *c.constraints;
   for (const ContactDef& contact : cs.contacts) {
     Row& r = cs.rows[static_cast<size_t>(contact.row)];
-    r.split = std::max(r.bias, 0.0);
-    r.bias -= r.split;
+    r.split = splitOff(r.bias);
   }
 }
 

@@ -282,6 +282,12 @@ void stepVelocitiesScaled(StepContext& c, const std::function<void(int j)>& betw
 // out of its bias (Row::split), so the velocity problem the algorithm solves (and warm starts)
 // carries no push-out; re-formulations subtract it again (ConstraintSet::reformulate).
 void splitPositionErrors(StepContext& c);
+// The part of a contact normal's bias split off (β > 0: a penetration), taken out of it.
+inline double splitOff(double& bias) {
+  const double split = std::max(bias, 0.0);
+  bias -= split;
+  return split;
+}
 // ... and corrects it instead with pseudo-velocities: `sweeps` Gauss-Seidel sweeps over the contact
 // normal rows for J p = τ split / n, from p = 0 (never warm started). s4 moves the coordinates by
 // h p; the velocities keep no trace of p. applyScale undoes the rows' scaled M̌⁻¹J̌ᵀ (A5's κ).
