@@ -7,19 +7,24 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <sstream>
 #include <string>
 
 namespace substep {
 
 inline bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
-// r and d equal field for field (what names them in a failure).
-inline void expectSameRow(const Row& r, const Row& d, const std::string& what) {
+// The fields in which r and d differ, with both values ("" when none).
+inline std::string rowDifferences(const Row& r, const Row& d) {
+  std::ostringstream out;
   const auto same = [&](double x, double y, const char* field) {
-    EXPECT_TRUE(sameBits(x, y)) << what << " " << field << ": " << x << " against " << y;
+    if (!sameBits(x, y)) out << " " << field << ": " << x << " against " << y << ";";
   };
-  EXPECT_EQ(r.a, d.a) << what;
-  EXPECT_EQ(r.b, d.b) << what;
+  const auto equal = [&](auto x, auto y, const char* field) {
+    if (x != y) out << " " << field << ": " << x << " against " << y << ";";
+  };
+  equal(r.a, d.a, "a");
+  equal(r.b, d.b, "b");
   for (int i = 0; i < 3; ++i) {
     same(r.lin[i], d.lin[i], "lin");
     same(r.angA[i], d.angA[i], "angA");
@@ -35,12 +40,18 @@ inline void expectSameRow(const Row& r, const Row& d, const std::string& what) {
   same(r.hi, d.hi, "hi");
   same(r.split, d.split, "split");
   same(r.lambda, d.lambda, "lambda");
-  EXPECT_EQ(r.normalRow, d.normalRow) << what;
-  EXPECT_EQ(r.normalCount, d.normalCount) << what;
-  EXPECT_EQ(r.velocityLevel, d.velocityLevel) << what;
-  EXPECT_EQ(r.velocityTarget, d.velocityTarget) << what;
-  EXPECT_EQ(r.speculative, d.speculative) << what;
-  EXPECT_EQ(r.pushed, d.pushed) << what;
+  equal(r.normalRow, d.normalRow, "normalRow");
+  equal(r.normalCount, d.normalCount, "normalCount");
+  equal(r.velocityLevel, d.velocityLevel, "velocityLevel");
+  equal(r.velocityTarget, d.velocityTarget, "velocityTarget");
+  equal(r.speculative, d.speculative, "speculative");
+  equal(r.pushed, d.pushed, "pushed");
+  return out.str();
+}
+
+// r and d equal field for field (what names them in a failure).
+inline void expectSameRow(const Row& r, const Row& d, const std::string& what) {
+  EXPECT_EQ(rowDifferences(r, d), "") << what;
 }
 
 }  // namespace substep

@@ -462,17 +462,27 @@ TEST(Lanes, A5SweepsInLanesAsOneAtATime) {
         o.set(&SolverSettings::lanes, lanes);
         return resolve(o);
       };
-      const std::string what = std::string(sceneName) + ", " + c.name;
-      const Stepped one = trajectory(s, settings(false), 60);
-      ASSERT_EQ(one.laneRuns, 0) << what;
       for (const lanes::Kernel* k : kernels) {
+        const std::string what = std::string(sceneName) + ", " + c.name + ", " + k->name;
         lanes::useKernel(k);
-        const Stepped eight = trajectory(s, settings(true), 60);
+        World one(s.model, settings(false), s.initial), eight(s.model, settings(true), s.initial);
+        int laneRuns = 0;
+        for (int step = 1; step <= 60; ++step) {
+          const StepReport& r = one.step();
+          ASSERT_EQ(r.solver.laneRuns, 0) << what;
+          laneRuns = std::max(laneRuns, eight.step().solver.laneRuns);
+          ASSERT_EQ(hashText(stateHash(one.state())), hashText(stateHash(eight.state()))) << what << ", step " << step;
+          // The stored rows as the step left them (λ and pushes for restitution, warm starting and
+          // overlays; β̄ and the bounds as A5's prologue scaled them).
+          const std::vector<Row>& rows = one.constraints().rows;
+          ASSERT_EQ(rows.size(), eight.constraints().rows.size()) << what;
+          for (size_t q = 0; q < rows.size(); ++q)
+            ASSERT_EQ(rowDifferences(eight.constraints().rows[q], rows[q]), "")
+                << what << ", step " << step << ", row " << q;
+          if (!r.finite) break;
+        }
         lanes::useKernel(nullptr);
-        ASSERT_GT(eight.laneRuns, 0) << what << ", " << k->name;
-        ASSERT_EQ(one.hashes.size(), eight.hashes.size()) << what;
-        for (size_t step = 0; step < one.hashes.size(); ++step)
-          ASSERT_EQ(one.hashes[step], eight.hashes[step]) << what << ", " << k->name << ", step " << step + 1;
+        ASSERT_GT(laneRuns, 0) << what;
       }
     }
 }

@@ -129,7 +129,15 @@ class HavokActualStepper final : public Stepper {
     });
     if (inLanes_) prepareLanes(c, ratio, invKappa);
     for (int j = 0; j < n; ++j) {
-      startSubStepImpulses(c, j, part);
+      if (inLanes_ && j == 0) {
+        // Last step's λ from the lanes (which hold the rows' λ̄), row by row as applyRowImpulses;
+        // the bodies' part of the warm start as for the stored rows (a part without rows).
+        startSubStepImpulses(c, j, ConstraintPart{{}, {}, part.bodies, {}});
+        std::vector<lanes::RigidGroup>& g = cs.laneGroups();
+        lanes::kernel().warmRigid(g.data(), 0, g.size(), c.v.data()->data(), c.w.data()->data());
+      } else {
+        startSubStepImpulses(c, j, part);
+      }
       // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step, and š stays zero when τ = 0.
       const bool shifted = j > 0 && ratio != 0;
       if (shifted)

@@ -184,6 +184,9 @@ struct Kernel {
   // that order). Returns the largest velocity change of a row when measure is set (else 0).
   double (*solveRigid)(RigidGroup* groups, size_t first, size_t last, double* v, double* w, RigidPhase phase,
                        bool measure, const BlockFallback& fallback);
+  // A5's warm start: each row's λ applied (v̌ += M̌⁻¹J̌ᵀλ, A5's scaled M̌⁻¹J̌ᵀ), groups [first, last)
+  // in order.
+  void (*warmRigid)(const RigidGroup* groups, size_t first, size_t last, double* v, double* w);
   const char* name;  // "avx512", "avx2" or "sse2"
 };
 
