@@ -258,10 +258,7 @@ void ConstraintSet::formulateManifold(size_t mk, Row* r, FrictionCoupling& coupl
   for (int k = 0; k < count; ++k) {
     formulateContact(c[k], A, B, h_, slop_, r[k], false);
     r[k].lambda = warm_ ? c[k].lastLambda : 0.0;
-    // Apart at the step's start (C > 0, β < 0): a speculative point. Without speculative points
-    // (the report has none) it stays in the manifold but holds nothing until it touches.
-    r[k].speculative = r[k].bias < 0 && speculative_;
-    if (r[k].bias < 0 && !speculative_) r[k].hi = r[k].lambda = 0;
+    markApart(r[k], speculative_);
   }
   Row* fr = r + count;
   formulateFriction(f, A, B, fr, false);

@@ -60,6 +60,14 @@ struct FrictionDef {
 // (pa - pb)·n at the given poses: negative when penetrating [m].
 double contactGap(const ContactDef& c, const Frame& A, const Frame& B);
 
+// A normal row apart at the step's start (C > 0, β < 0) is a speculative point (closing the gap at
+// full speed); without speculative points (the report has none) it stays in the manifold but holds
+// nothing until it touches (hi = λ = 0).
+inline void markApart(Row& row, bool speculative) {
+  row.speculative = row.bias < 0 && speculative;
+  if (row.bias < 0 && !speculative) row.hi = row.lambda = 0;
+}
+
 // The normal row at poses A, B for time step h. jacobianOnly keeps the bias (A4/A5 update it
 // by the report's rule instead).
 void formulateContact(const ContactDef& c, const Frame& A, const Frame& B, double h, double slop, Row& row,

@@ -82,8 +82,7 @@ void ConstraintSet::formulateGroup(const int* manifolds, int count, const lanes:
       copyRow(g, g.normal[q], l, row);
       row.lo = 0;
       row.hi = kInfinity;
-      row.speculative = row.bias < 0 && speculative_;  // formulateManifold's rule (λ already 0)
-      if (row.bias < 0 && !speculative_) row.hi = 0;
+      markApart(row, speculative_);
     }
     Row* fr = r + fd.normalCount;
     for (int i = 0; i < 3; ++i) {
