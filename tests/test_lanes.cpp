@@ -7,6 +7,7 @@
 #include "physics/steppers/soft_lanes.h"
 #include "physics/steppers/soft_lanes_fill.h"
 #include "physics/world.h"
+#include "random_settings.h"
 #include "row_compare.h"
 #include "step_inputs.h"
 
@@ -496,31 +497,13 @@ TEST(Lanes, A5SweepsInLanesAsOneAtATime) {
 // two draws of three, so that A5's lanes are taken often.
 TEST(Lanes, RandomSettingsTakeTheSameStepsInLanes) {
   std::mt19937_64 random(20261206);
-  const auto next = [&](size_t n) { return std::uniform_int_distribution<size_t>(0, n - 1)(random); };
   const std::pair<const char*, Scene> scenes[] = {{"pyramid", scene("pyramid.json")}, {"ramp", rampScene()}};
   int inLanes = 0, draws = 0;
   for (const Algorithm algorithm : {Algorithm::A5, Algorithm::Soft})
     for (int draw = 0; draw < 24; ++draw) {
-      SolverOverrides o;
-      o.set(&SolverSettings::algorithm, algorithm);
-      std::string what = std::string(algorithm == Algorithm::A5 ? "a5" : "soft") + " draw " + std::to_string(draw) + ":";
-      for (const SettingSpec& s : settingTable()) {
-        if (!s.resolved() || !s.takes.has(algorithm)) continue;
-        const std::string key = s.key;
-        if (key == "algorithm" || key == "lanes" || key == "threads" || key == "dt") continue;
-        const double d = s.defaultFor(algorithm);
-        double v = d;
-        switch (s.kind) {
-          case SettingKind::Flag: v = static_cast<double>(next(2)); break;
-          case SettingKind::Choice: v = static_cast<double>(next(s.choices.size())); break;
-          case SettingKind::Integer: v = std::max(s.range.lo, std::round(d * (0.5 + 0.5 * static_cast<double>(next(3))))); break;
-          case SettingKind::Real: v = d * (0.5 + 0.5 * static_cast<double>(next(3))); break;
-        }
-        if ((s.kind == SettingKind::Integer || s.kind == SettingKind::Real) && !s.range.contains(v)) v = d;
-        if ((key == "warm_start" || key == "contact_blocks") && next(3) > 0) v = 1;
-        o.set(s, v);
-        what += " " + key + "=" + s.text(v);
-      }
+      DrawnSettings drawn = drawSettings(algorithm, random, {"lanes", "threads", "dt"}, {"warm_start", "contact_blocks"});
+      SolverOverrides& o = drawn.overrides;
+      const std::string what = std::string(algorithmName(algorithm)) + " draw " + std::to_string(draw) + ": " + drawn.text;
       SolverSettings lanesOff, lanesOn;
       try {
         o.set(&SolverSettings::lanes, false);

@@ -6,9 +6,11 @@
 #include "physics/scene_file.h"
 #include "physics/state_hash.h"
 #include "physics/world.h"
+#include "random_settings.h"
 
 #include <gtest/gtest.h>
 
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -62,6 +64,33 @@ TEST(Threads, TrajectoriesAreBitIdenticalForAnyNumberOfThreads) {
       }
     }
   }
+}
+
+// Any settings, not only the scenes' own: every setting an algorithm reads drawn at random
+// (tests/random_settings.h), eight draws for each of A2-A5 and the soft step, on the pyramid and on
+// the ragdoll pile (joints), 20 steps on one and on two threads.
+TEST(Threads, RandomSettingsTakeTheSameStepsOnAnyNumberOfThreads) {
+  std::mt19937_64 random(20261207);
+  const std::pair<const char*, Scene> scenes[] = {
+      {"pyramid", loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/pyramid.json")},
+      {"ragdoll_pile", loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/ragdoll_pile.json")}};
+  int stepped = 0;
+  for (Algorithm a : {Algorithm::A2, Algorithm::A3, Algorithm::A4, Algorithm::A5, Algorithm::Soft})
+    for (int draw = 0; draw < 8; ++draw) {
+      const DrawnSettings drawn = drawSettings(a, random, {"threads", "dt"});
+      SolverSettings st;
+      try {
+        st = resolve(drawn.overrides);
+      } catch (const std::invalid_argument&) {
+        continue;  // a combination the schema refuses
+      }
+      for (const auto& [name, s] : scenes) {
+        const std::vector<std::string> one = trajectory(s, st, 1, 20);
+        EXPECT_EQ(one, trajectory(s, st, 2, 20)) << name << ", " << algorithmName(a) << " draw " << draw << ": " << drawn.text;
+        stepped += one.size() == 20;
+      }
+    }
+  EXPECT_GT(stepped, 60) << "draws stepped 20 steps (of 80)";
 }
 
 // Sleeping bodies are static to the solve: the soft step's colours leave them out, and an island
