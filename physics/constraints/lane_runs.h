@@ -5,7 +5,6 @@
 #include "physics/constraints/contact.h"
 
 #include <cstddef>
-
 #include <cstdint>
 #include <vector>
 

@@ -59,7 +59,7 @@ class HavokActualStepper final : public Stepper {
     // In lanes (SolverSettings::lanes), on one thread: warm, with the contact rows held (no joints)
     // and a manifold's normals a block (or one single row), the whole step at once, its manifolds
     // eight at a time in the runs of the step's order; the same numbers as island by island.
-    inLanes_ = !cs.laneGroups().empty() && pool.threads() == 1;  // asked for by asksLaneGroups
+    inLanes_ = !cs.laneGroups().empty();  // asked for by asksLaneGroups, granted by build()
     if (stableOnly || inLanes_) {
       solvePart(c, cs.whole(nb), stableOnly, parts_[0]);
     } else if (pool.threads() == 1 || cs.islandCount() == 1) {
@@ -82,9 +82,9 @@ class HavokActualStepper final : public Stepper {
   }
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
-  bool asksLaneGroups(const SolverSettings& st, int threads) const override {
-    return st.lanes && st.warmStart && st.contactBlocks && threads == 1;
-  }
+  // Its lane sweep runs on one thread; build() grants the groups where the rows allow (warm,
+  // contact blocks, no joints, within L2).
+  bool asksLaneGroups(const SolverSettings& st, int threads) const override { return st.lanes && threads == 1; }
 
  private:
   // Sub-steps 1..n of one part of the step (an island, or all of it).
@@ -214,32 +214,28 @@ class HavokActualStepper final : public Stepper {
       };
       for (lanes::RigidRowLanes& r : g.normal) scale(r);
       for (lanes::RigidRowLanes& r : g.friction) scale(r);
-      for (int l = 0; l < g.count; ++l) {
-        const FrictionDef& f = cs.frictions[static_cast<size_t>(g.manifold[l])];
-        for (int q = 0; q < f.normalCount; ++q)
-          biasLane_[static_cast<size_t>(f.firstNormal + q) - rowBase] = &g.normal[q].bias.x[l];
-        for (int i = 0; i < 3; ++i) biasLane_[static_cast<size_t>(f.row + i) - rowBase] = &g.friction[i].bias.x[l];
-      }
+      eachLaneRow(cs, g, [&](size_t row, lanes::RigidRowLanes& r, int l) { biasLane_[row - rowBase] = &r.bias.x[l]; });
+    }
+  }
+
+  // f(its row, its lanes, lane) for every stored contact row of group g's lanes in use.
+  template <class F>
+  static void eachLaneRow(const ConstraintSet& cs, lanes::RigidGroup& g, F f) {
+    for (int l = 0; l < g.count; ++l) {
+      const FrictionDef& d = cs.frictions[static_cast<size_t>(g.manifold[l])];
+      for (int q = 0; q < d.normalCount; ++q) f(static_cast<size_t>(d.firstNormal + q), g.normal[q], l);
+      for (int i = 0; i < 3; ++i) f(static_cast<size_t>(d.row + i), g.friction[i], l);
     }
   }
 
   // The lanes' λ and pushed back to the rows, as the sweeps left them.
   void emptyLanes(StepContext& c) {
     ConstraintSet& cs = *c.constraints;
-    for (const lanes::RigidGroup& g : cs.laneGroups())
-      for (int l = 0; l < g.count; ++l) {
-        const FrictionDef& f = cs.frictions[static_cast<size_t>(g.manifold[l])];
-        for (int q = 0; q < f.normalCount; ++q) {
-          Row& r = cs.rows[static_cast<size_t>(f.firstNormal + q)];
-          r.lambda = g.normal[q].lambda.x[l];
-          r.pushed = g.normal[q].pushed.x[l] != 0;
-        }
-        for (int i = 0; i < 3; ++i) {
-          Row& r = cs.rows[static_cast<size_t>(f.row + i)];
-          r.lambda = g.friction[i].lambda.x[l];
-          r.pushed = g.friction[i].pushed.x[l] != 0;
-        }
-      }
+    for (lanes::RigidGroup& g : cs.laneGroups())
+      eachLaneRow(cs, g, [&](size_t row, const lanes::RigidRowLanes& r, int l) {
+        cs.rows[row].lambda = r.lambda.x[l];
+        cs.rows[row].pushed = r.pushed.x[l] != 0;
+      });
   }
 
   // One sweep in lanes, in the units' order: every manifold's friction, then every block (split

@@ -233,7 +233,6 @@ class SoftStepper final : public Stepper {
       f(ci == ConstraintSet::kColours ? ci : ConstraintSet::kColours - 1 - ci);
   }
 
-
   // The manifolds eight to a group (soft_lanes.h), in runs whose manifolds share no body that
   // moves, solved run after run: the colours (from the highest down, the overflow last, one to a
   // group since its manifolds share bodies), or uncoloured the sweep's runs (LaneRuns).
@@ -360,7 +359,6 @@ class SoftStepper final : public Stepper {
     to.lambda.x[l] = r ? r->lambda : 0;
     to.pushed.x[l] = r && r->pushed ? -1 : 0;
   }
-
 
   // f(group, lane, its manifold's definition) for every lane in use, the groups on the threads.
   template <class F>
