@@ -31,6 +31,8 @@ static int usableThreads(int asked) {
   return std::max(1, std::min(asked, 2 * cores));
 }
 
+std::atomic<bool> WorkerPool::lastFirst_{false};
+
 WorkerPool& WorkerPool::callerOnly() {
   static WorkerPool alone(1);
   return alone;

@@ -40,12 +40,20 @@ class WorkerPool {
   // every thread, since it never hands anything out.
   static WorkerPool& callerOnly();
 
+  // For tests, process-wide: the caller alone takes a job's blocks last first. Threads take blocks
+  // as they ask for them, in any order, so a step must come out the same to the last bit; a block
+  // that reads what another block of its job writes does not (tests/test_threads.cpp).
+  static void takeBlocksLastFirst(bool on) { lastFirst_.store(on, std::memory_order_relaxed); }
+
   // f(block, thread) for every block in [0, blocks); thread in [0, threads()), 0 the caller.
   // Returns when all are done; rethrows the first exception a block threw.
   template <class F>
   void forBlocks(size_t blocks, F&& f) {
     if (threads_ == 1 || blocks <= 1) {
-      for (size_t b = 0; b < blocks; ++b) f(b, 0);
+      if (lastFirst_.load(std::memory_order_relaxed))
+        for (size_t b = blocks; b-- > 0;) f(b, 0);
+      else
+        for (size_t b = 0; b < blocks; ++b) f(b, 0);
       return;
     }
     using Callable = std::remove_reference_t<F>;
@@ -92,6 +100,7 @@ class WorkerPool {
   std::condition_variable cv_;
   std::exception_ptr error_;
   std::mutex errorM_;
+  static std::atomic<bool> lastFirst_;
   int threads_;
   std::vector<std::thread> workers_;
 };

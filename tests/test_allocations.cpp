@@ -2,6 +2,7 @@
 // manifolds, rows, units, blocks, sub-step velocities) keeps its capacity from step to step.
 // The count is of every operator new in this process while World::step runs.
 #include "physics/scene_file.h"
+#include "physics/step_arrays.h"
 #include "physics/world.h"
 
 #include <gtest/gtest.h>
@@ -11,6 +12,7 @@
 #include <cstdlib>
 #include <new>
 #include <string>
+#include <vector>
 
 namespace {
 std::atomic<long> gAllocations{0};
@@ -83,3 +85,37 @@ INSTANTIATE_TEST_SUITE_P(Scenes, SettledStep,
                                            Case{"pyramid", "a4"}, Case{"pyramid", "soft"}, Case{"stack", ""},
                                            Case{"chain", ""}, Case{"ragdoll_pile", ""}),
                          caseName);
+
+// The step's large arrays (physics/step_arrays.h): a settling scene's contacts grow by a few per
+// cent after its first step (the 100-level pyramid's points from 40 000 to 41 200), which must
+// not reallocate them; grown as std::vector grows them, its manifolds, contact definitions and
+// lane groups were reallocated to twice their size at its sixth step, every element copied: 90 ms
+// in one step (docs/benchmarks.md, "The large arrays' growth").
+TEST(StepArrays, AFewPerCentMoreTakesNoNewStorage) {
+  std::vector<double> v;
+  resizeRewritten(v, 40000);
+  const double* storage = v.data();
+  gAllocations = 0;
+  gCounting = true;
+  resizeRewritten(v, 41200);
+  resizeRewritten(v, 39000);
+  resizeRewritten(v, 50000);
+  gCounting = false;
+  EXPECT_EQ(gAllocations.load(), 0);
+  EXPECT_EQ(v.data(), storage);
+  EXPECT_EQ(v.size(), 50000u);
+}
+
+// Beyond its room an array is taken anew, the old elements not copied (the step writes every one),
+// and at least twice as large, so that an array that keeps growing (a pile falling into place)
+// is not taken anew at every step.
+TEST(StepArrays, BeyondItsRoomTwiceAsMuchAndNothingCopied) {
+  std::vector<double> v;
+  resizeRewritten(v, 100);
+  for (double& x : v) x = 7;
+  const size_t room = v.capacity();
+  resizeRewritten(v, room + 1);
+  EXPECT_GE(v.capacity(), 2 * room);
+  EXPECT_EQ(v.size(), room + 1);
+  for (size_t k = 0; k < v.size(); ++k) ASSERT_EQ(v[k], 0.0) << "element " << k << " copied, not value-initialised";
+}

@@ -3,6 +3,7 @@
 // pyramid: one island; a pile: a thousand boxes; the ragdoll pile: joints before the contacts),
 // with the soft step's contacts in the step's order and by colours. Slow: out of the sanitizer
 // pass (tests/test_parallel.cpp holds the pool itself there).
+#include "physics/parallel.h"
 #include "physics/scene_file.h"
 #include "physics/state_hash.h"
 #include "physics/world.h"
@@ -63,6 +64,42 @@ TEST(Threads, TrajectoriesAreBitIdenticalForAnyNumberOfThreads) {
         for (size_t k = 0; k < one.size(); ++k) ASSERT_EQ(one[k], many[k]) << what << ", step " << k + 1;
       }
     }
+  }
+}
+
+// Threads take a job's blocks in whatever order they ask for them, so a block that reads what
+// another block of its job writes gives a step that depends on the race. Taken last first on one
+// thread (WorkerPool::takeBlocksLastFirst), every such read comes before the write: the scenes and
+// methods above, in either contact frame, must step the same to the last bit. It found the lanes' formulation reading the
+// first manifold's contact frame from every block of build()'s definitions.
+TEST(Threads, BlocksTakenInAnyOrderGiveTheSameSteps) {
+  struct LastFirst {
+    LastFirst() { WorkerPool::takeBlocksLastFirst(true); }
+    ~LastFirst() { WorkerPool::takeBlocksLastFirst(false); }
+  };
+  for (const char* scene : {"pyramid.json", "pile.json", "ragdoll_pile.json"}) {
+    const Scene s = loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + scene);
+    for (Algorithm a : kAlgorithms)
+      for (ContactFrame frame : {ContactFrame::Bodies, ContactFrame::World})
+        for (bool colours : {false, true}) {
+          if (colours && a != Algorithm::Soft) continue;
+          SolverOverrides o = s.solver;
+          o.set(&SolverSettings::algorithm, a);
+          o.set(&SolverSettings::contactFrame, frame);
+          if (colours) o.set(&SolverSettings::colours, true);
+          const SolverSettings st = resolve(o);
+          const std::vector<std::string> inOrder = trajectory(s, st, 1, 20);
+          std::vector<std::string> lastFirst;
+          {
+            const LastFirst reversed;
+            lastFirst = trajectory(s, st, 1, 20);
+          }
+          const std::string what = std::string(scene) + " " + algorithmName(a) +
+                                   (frame == ContactFrame::World ? " world frame" : " bodies' frame") +
+                                   (colours ? " colours" : "");
+          ASSERT_EQ(inOrder.size(), lastFirst.size()) << what;
+          for (size_t k = 0; k < inOrder.size(); ++k) ASSERT_EQ(inOrder[k], lastFirst[k]) << what << ", step " << k + 1;
+        }
   }
 }
 

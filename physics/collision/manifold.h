@@ -6,6 +6,7 @@
 
 #include "physics/collision/narrowphase.h"
 #include "physics/math.h"
+#include "physics/step_arrays.h"
 
 #include <cstdint>
 #include <vector>
@@ -106,7 +107,7 @@ class ManifoldCache {
   // makes this step's list n long for the caller to fill in pair order (every element written),
   // and claimIds(k) numbers k new points: the first of them, as k take()s would have.
   std::vector<Manifold>& place(size_t n) {
-    current_.resize(n);
+    resizeRewritten(current_, n);
     return current_;
   }
   // Or, when the list is as long as last step's and each manifold kept stands where it stood (a

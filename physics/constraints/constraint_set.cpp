@@ -1,6 +1,7 @@
 #include "physics/constraints/constraint_set.h"
 
 #include "physics/constraints/joints.h"
+#include "physics/step_arrays.h"
 
 #include <algorithm>
 #include <cassert>
@@ -62,7 +63,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     bounces |= bounces_[k];
   }
   deferred_ = deferAsked_ && model.joints.empty() && settings.warmStart && !bounces;
-  rows.resize(jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm));
+  resizeRewritten(rows, jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm));
   size_t next = 0;
   auto take = [&](int n) {
     Row* r = rows.data() + next;
@@ -113,14 +114,14 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     at += manifoldPoint_[k + 1] - manifoldPoint_[k] + 3;
   }
   manifoldRow_[nm] = at;
-  frictions.resize(nm);  // every element written below
+  resizeRewritten(frictions, nm);  // every element written below
   couplings.resize(nm);  // manifold k's friction unit's, written below (finishAll numbers them so)
-  contacts.resize(static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
+  resizeRewritten(contacts, static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
   frames_.resize(poses.size());
   parallel(poses.size(), 256, [&](size_t first, size_t last) {
     for (size_t i = first; i < last; ++i) frames_[i] = Frame(poses[i]);
   });
-  const bool worldFrame = settings.contactFrame == ContactFrame::World;
+  const bool worldFrame = worldFrame_ = settings.contactFrame == ContactFrame::World;
   warm_ = settings.warmStart;
   exempt_ = settings.frictionExempt;
   mass_ = &mass;
@@ -130,7 +131,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // same numbers as formulateManifold's; with contact blocks, their K and K⁻¹ too.
   const bool inLanes = inLanes_ = !deferred_ && lanesAsked_ && applyScale > 0 && nm > 0;
   blocksInLanes_ = inLanes && contactBlocks_;
-  if (blocksInLanes_) laneBlocks_.resize(nm);
+  if (blocksInLanes_) resizeRewritten(laneBlocks_, nm);
   // A5's lanes: the definitions first, then the groups in the runs' order. Only while the groups
   // fit in the core's L2 cache (about 1 KB a manifold; the 20-level pyramid's 400 manifolds do,
   // the 40-level one's 1640 do not): the sweeps stream them eight times a step, and formulated in

@@ -175,6 +175,7 @@ class ConstraintSet {
                       lanes::RigidGroup& g);
   lanes::Formulation laneFormulation() const;
   bool lanesAsked_ = true, inLanes_ = false, blocksInLanes_ = false, laneGroupsAsked_ = false;
+  bool worldFrame_ = true;  // SolverSettings::contactFrame == World, for the lanes' formulation
   LaneRuns laneRuns_;
   std::vector<lanes::RigidGroup> laneGroups_;
   std::vector<int> laneGroupStart_;  // each group's first place in laneRuns_.manifolds(); one past the last

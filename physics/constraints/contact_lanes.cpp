@@ -6,6 +6,7 @@
 // arithmetic (bodies, flags) is set here, as formulateManifold sets it. Asked for lane groups
 // (askLaneGroups), the groups are the runs of the step's order and are kept for the sweep.
 #include "physics/constraints/constraint_set.h"
+#include "physics/step_arrays.h"
 #include "physics/steppers/soft_lanes_fill.h"
 
 #include <algorithm>
@@ -39,7 +40,9 @@ lanes::Formulation ConstraintSet::laneFormulation() const {
   lanes::Formulation f = lanes::formulation(*this, h_);
   f.scale = applyScale_;
   f.unscale = 1 / applyScale_;  // finishUnit's unscale of a contact block's rows
-  f.bodiesFrame = !frictions.empty() && !frictions[0].worldFrame;
+  // From the settings, not frictions[0]: every block of build()'s definitions formulates its own
+  // manifolds while block 0 may not have written that one yet.
+  f.bodiesFrame = !worldFrame_;
   f.blocks = blocksInLanes_;
   f.warm = warm_;
   return f;
@@ -129,7 +132,7 @@ void ConstraintSet::formulateLaneGroups() {
   laneGroupStart_.push_back(start.back());
   runCount_ = static_cast<int>(start.size()) - 1;
   const size_t groups = laneGroupStart_.size() - 1;
-  laneGroups_.resize(groups);
+  resizeRewritten(laneGroups_, groups);
   const lanes::Formulation f = laneFormulation();
   // The groups take the manifolds in the runs' order, which no hardware prefetch follows: the
   // next group's definitions and rows are asked for while this one is formulated.

@@ -27,6 +27,7 @@
 // at a time, uncoloured the islands to the threads island by island: the same trajectory again.
 #include "physics/steppers/soft_lanes.h"
 #include "physics/constraints/lane_runs.h"
+#include "physics/step_arrays.h"
 #include "physics/steppers/soft_lanes_fill.h"
 #include "physics/steppers/stepper.h"
 
@@ -264,7 +265,7 @@ class SoftStepper final : public Stepper {
     const int* order = laneOrder_;
     c.stats.laneRuns = static_cast<int>(segments_.size());
     c.stats.laneGroups = static_cast<int>(groups);
-    groups_.resize(groups);
+    resizeRewritten(groups_, groups);
     const double h = c.h() / c.n();
     const bool deferred = cs.contactRowsDeferred();
     // Deferred in the world contact frame (the soft step's default), the kernel formulates the
@@ -397,7 +398,7 @@ class SoftStepper final : public Stepper {
   // as it would take them from the rows.
   void lanesToImpulses(StepContext& c) {
     ConstraintSet& cs = *c.constraints;
-    cs.impulses.resize(cs.frictions.size());
+    resizeRewritten(cs.impulses, cs.frictions.size());
     eachLane(c, [&](const lanes::Group& g, int l, const FrictionDef& fd) {
       ConstraintSet::ManifoldImpulses& to = cs.impulses[static_cast<size_t>(g.manifold[l])];
       for (int q = 0; q < fd.normalCount; ++q) to.normal[q] = g.normal[q].lambda.x[l];
