@@ -70,8 +70,8 @@ TEST(Threads, TrajectoriesAreBitIdenticalForAnyNumberOfThreads) {
 // Threads take a job's blocks in whatever order they ask for them, so a block that reads what
 // another block of its job writes gives a step that depends on the race. Taken last first on one
 // thread (WorkerPool::takeBlocksLastFirst), every such read comes before the write: the scenes and
-// methods above, in either contact frame, must step the same to the last bit. It found the lanes' formulation reading the
-// first manifold's contact frame from every block of build()'s definitions.
+// methods above, in either contact frame, must step the same to the last bit. It found the lanes'
+// formulation reading the first manifold's contact frame from every block of build()'s definitions.
 TEST(Threads, BlocksTakenInAnyOrderGiveTheSameSteps) {
   struct LastFirst {
     LastFirst() { WorkerPool::takeBlocksLastFirst(true); }
