@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -38,6 +39,35 @@ std::vector<std::string> trajectory(const Scene& s, SolverSettings st, int threa
   return out;
 }
 
+// "" when two trajectories agree step by step, else the first step where they part.
+std::string firstDifference(const std::vector<std::string>& a, const std::vector<std::string>& b) {
+  for (size_t k = 0; k < std::min(a.size(), b.size()); ++k)
+    if (a[k] != b[k]) return "step " + std::to_string(k + 1) + ": " + a[k] + " against " + b[k];
+  if (a.size() != b.size()) return std::to_string(a.size()) + " steps against " + std::to_string(b.size());
+  return "";
+}
+
+// What the tests step each scene under: every algorithm, and the soft step by colours.
+struct Method {
+  Algorithm algorithm;
+  bool colours;
+};
+std::vector<Method> methods() {
+  std::vector<Method> out;
+  for (Algorithm a : kAlgorithms) out.push_back({a, false});
+  out.push_back({Algorithm::Soft, true});
+  return out;
+}
+
+// The scene's own settings under method m.
+SolverOverrides methodSettings(const Scene& s, const Method& m) {
+  SolverOverrides o = s.solver;
+  o.set(&SolverSettings::algorithm, m.algorithm);
+  if (m.colours) o.set(&SolverSettings::colours, true);
+  return o;
+}
+std::string methodName(const Method& m) { return std::string(algorithmName(m.algorithm)) + (m.colours ? " colours" : ""); }
+
 }  // namespace
 
 TEST(Threads, TrajectoriesAreBitIdenticalForAnyNumberOfThreads) {
@@ -47,22 +77,12 @@ TEST(Threads, TrajectoriesAreBitIdenticalForAnyNumberOfThreads) {
   };
   for (const Case& c : {Case{"pyramid.json", 40}, Case{"pile.json", 40}, Case{"ragdoll_pile.json", 40}}) {
     const Scene s = loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + c.scene);
-    std::vector<std::pair<Algorithm, bool>> methods;  // (algorithm, the soft step by colours)
-    for (Algorithm a : kAlgorithms) methods.emplace_back(a, false);
-    methods.emplace_back(Algorithm::Soft, true);
-    for (const auto& [a, colours] : methods) {
-      SolverOverrides o = s.solver;
-      o.set(&SolverSettings::algorithm, a);
-      if (colours) o.set(&SolverSettings::colours, true);
-      const SolverSettings st = resolve(o);
+    for (const Method& m : methods()) {
+      const SolverSettings st = resolve(methodSettings(s, m));
       const std::vector<std::string> one = trajectory(s, st, 1, c.steps);
-      for (int threads : {2, 3}) {
-        const std::vector<std::string> many = trajectory(s, st, threads, c.steps);
-        const std::string what = std::string(c.scene) + " " + algorithmName(a) + (colours ? " colours" : "") + " on " +
-                                 std::to_string(threads) + " threads";
-        ASSERT_EQ(one.size(), many.size()) << what;
-        for (size_t k = 0; k < one.size(); ++k) ASSERT_EQ(one[k], many[k]) << what << ", step " << k + 1;
-      }
+      for (int threads : {2, 3})
+        ASSERT_EQ(firstDifference(one, trajectory(s, st, threads, c.steps)), "")
+            << c.scene << " " << methodName(m) << " on " << threads << " threads";
     }
   }
 }
@@ -79,27 +99,20 @@ TEST(Threads, BlocksTakenInAnyOrderGiveTheSameSteps) {
   };
   for (const char* scene : {"pyramid.json", "pile.json", "ragdoll_pile.json"}) {
     const Scene s = loadScene(std::string(SUBSTEP_SOURCE_DIR "/assets/scenes/") + scene);
-    for (Algorithm a : kAlgorithms)
-      for (ContactFrame frame : {ContactFrame::Bodies, ContactFrame::World})
-        for (bool colours : {false, true}) {
-          if (colours && a != Algorithm::Soft) continue;
-          SolverOverrides o = s.solver;
-          o.set(&SolverSettings::algorithm, a);
-          o.set(&SolverSettings::contactFrame, frame);
-          if (colours) o.set(&SolverSettings::colours, true);
-          const SolverSettings st = resolve(o);
-          const std::vector<std::string> inOrder = trajectory(s, st, 1, 20);
-          std::vector<std::string> lastFirst;
-          {
-            const LastFirst reversed;
-            lastFirst = trajectory(s, st, 1, 20);
-          }
-          const std::string what = std::string(scene) + " " + algorithmName(a) +
-                                   (frame == ContactFrame::World ? " world frame" : " bodies' frame") +
-                                   (colours ? " colours" : "");
-          ASSERT_EQ(inOrder.size(), lastFirst.size()) << what;
-          for (size_t k = 0; k < inOrder.size(); ++k) ASSERT_EQ(inOrder[k], lastFirst[k]) << what << ", step " << k + 1;
+    for (const Method& m : methods())
+      for (ContactFrame frame : {ContactFrame::Bodies, ContactFrame::World}) {
+        SolverOverrides o = methodSettings(s, m);
+        o.set(&SolverSettings::contactFrame, frame);
+        const SolverSettings st = resolve(o);
+        const std::vector<std::string> inOrder = trajectory(s, st, 1, 20);
+        std::vector<std::string> lastFirst;
+        {
+          const LastFirst reversed;
+          lastFirst = trajectory(s, st, 1, 20);
         }
+        ASSERT_EQ(firstDifference(inOrder, lastFirst), "")
+            << scene << " " << methodName(m) << (frame == ContactFrame::World ? ", world frame" : ", bodies' frame");
+      }
   }
 }
 
