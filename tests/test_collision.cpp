@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <random>
 
 using namespace substep;
@@ -429,6 +431,75 @@ TEST(Broadphase, BoxesAndPlanesOnThreadsGiveThePairsInOrder) {
       EXPECT_EQ(pairs, found) << pool->threads() << " threads, cap " << cap;
     }
   }
+}
+
+// FCL rebuilds its whole tree top down after an update once the tree is ten levels deeper than a
+// balanced one: on the settling 100-level pyramid, where a hundred bodies leave their fat boxes
+// every other step, that was nearly every update, 1.4 ms on the calling thread (docs/benchmarks.md,
+// "The broadphase tree's rebuilds"). Here a 100-level pyramid of 5050 boxes, every other box then
+// moved 30 cm (out of its fat box): the tree, more than ten levels too deep, is kept as it is, and
+// moving a few more bodies keeps it too; and a tree pushed past the bound is rebuilt.
+TEST(Broadphase, MovedBodiesRebuildNoTreeWithinTheBound) {
+  Model m;
+  State s;
+  const int levels = 100;
+  for (int level = 0; level < levels; ++level)
+    for (int i = 0; i < levels - level; ++i) {
+      Body b;
+      b.name = "b" + std::to_string(m.bodies.size());
+      b.shape = box(0.5, 0.5, 0.5);
+      m.bodies.push_back(b);
+      BodyState bs;
+      bs.x = Vec3(1.02 * (i + 0.5 * level), 0.5 + level, 0);
+      s.bodies.push_back(bs);
+    }
+  const int n = static_cast<int>(m.bodies.size());
+  // The bound: 2 log2(n) + 10 levels (rounded up) above a balanced tree's log2(n).
+  const auto boundFor = [](int leaves) { return std::log2(leaves) + 2 * std::ceil(std::log2(leaves)) + 10; };
+  const double balanced = std::log2(n), bound = boundFor(n);
+  const std::vector<double> still(m.bodies.size(), 0.0);
+  const std::vector<Vec3> move(m.bodies.size(), Vec3::Zero());
+  Broadphase bp(m);
+  bp.update(s, still, move, Vec3::Zero());
+  for (size_t i = 0; i < s.bodies.size(); i += 2) s.bodies[i].x.y() -= 0.3;
+  bp.update(s, still, move, Vec3::Zero());
+  ASSERT_EQ(bp.movedLastUpdate(), (n + 1) / 2);
+  const int kept = bp.treeHeight();
+  EXPECT_GT(kept, balanced + 10) << "a tree FCL's own rule rebuilds";
+  EXPECT_LE(kept, bound);
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> body(0, n - 1);
+  for (int k = 0; k < 3; ++k) s.bodies[static_cast<size_t>(body(rng))].x.z() += 0.5;
+  bp.update(s, still, move, Vec3::Zero());
+  ASSERT_EQ(bp.movedLastUpdate(), 3);
+  EXPECT_GE(bp.treeHeight(), kept - 1);
+  // A conveyor: a row of 1000 boxes, the first taken to the end of the row, one each update. Kept
+  // as FCL balances it a few nodes at a time, this tree grows 266 levels deep in 5000 updates; it
+  // is rebuilt once past the bound.
+  Model row;
+  State along;
+  const int count = 1000;
+  for (int i = 0; i < count; ++i) {
+    Body b;
+    b.name = "r" + std::to_string(i);
+    b.shape = box(0.5, 0.5, 0.5);
+    row.bodies.push_back(b);
+    BodyState bs;
+    bs.x = Vec3(1.1 * i, 0, 0);
+    along.bodies.push_back(bs);
+  }
+  const std::vector<double> rowStill(row.bodies.size(), 0.0);
+  const std::vector<Vec3> rowMove(row.bodies.size(), Vec3::Zero());
+  Broadphase conveyor(row);
+  conveyor.update(along, rowStill, rowMove, Vec3::Zero());
+  int highest = 0;
+  for (int k = 0; k < 5 * count; ++k) {
+    along.bodies[static_cast<size_t>(k % count)].x.x() += 1.1 * count;
+    conveyor.update(along, rowStill, rowMove, Vec3::Zero());
+    ASSERT_EQ(conveyor.movedLastUpdate(), 1);
+    highest = std::max(highest, conveyor.treeHeight());
+  }
+  EXPECT_LE(highest, boundFor(count) + 1);
 }
 
 TEST(Narrowphase, SpeculativePointsWithinTheMargin) {

@@ -1,6 +1,7 @@
 #include "physics/collision/broadphase.h"
 
 #include <algorithm>
+#include <cmath>
 #include <iterator>
 
 namespace substep {
@@ -66,7 +67,14 @@ bool collectCandidate(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void
 
 }  // namespace
 
+int Broadphase::rebuildExcess(int leaves) {
+  return 2 * static_cast<int>(std::ceil(std::log2(std::max(2, leaves)))) + 10;
+}
+
+int Broadphase::treeHeight() const { return static_cast<int>(manager_.getTree().getMaxHeight()); }
+
 Broadphase::Broadphase(const Model& model) : model_(model) {
+  int inTree = 0;
   for (size_t i = 0; i < model.bodies.size(); ++i) {
     const Shape& s = model.bodies[i].shape;
     shapes_.push_back(makeCollisionShape(s));
@@ -76,7 +84,9 @@ Broadphase::Broadphase(const Model& model) : model_(model) {
     }
     objects_.push_back(std::make_unique<FatObject>(shapes_.back().geometry));
     objects_.back()->setUserData(reinterpret_cast<void*>(static_cast<intptr_t>(i)));
+    ++inTree;
   }
+  manager_.max_tree_nonbalanced_level = rebuildExcess(inTree);
   reachBox_.resize(model.bodies.size());
   fat_.resize(model.bodies.size());
   // At most every body moves in one update: reserved, so a step in which more move than ever

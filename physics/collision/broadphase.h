@@ -11,6 +11,14 @@
 // step; each step's pairs are those of them whose reach boxes overlap. A resting pile changes
 // nothing in the tree and costs one box test per candidate pair.
 //
+// After an update FCL rebalances the tree a few nodes at a time, and rebuilds it top down once it
+// is rebuildExcess levels deeper than a balanced tree: 2 log2(n) + 10, not FCL's 10. On the settling
+// 100-level pyramid a hundred bodies leave their fat boxes every other step, and FCL's own bound
+// rebuilt the 5050 leaves nearly every time, 1.4 ms on the calling thread; the deeper tree it keeps
+// now (about 35 levels against 13) answers the moved bodies' queries as fast (docs/benchmarks.md,
+// "The broadphase tree's rebuilds"). The bound still holds a tree that keeps degrading: a row of
+// boxes taken from its front to its back, one an update, grows 266 levels deep without it.
+//
 // Static-static pairs, pairs a joint keeps apart and pairs the collision filter (model.h,
 // mayTouch) excludes are never pairs. Planes have unbounded boxes, on which FCL's tree build
 // crashes: they stay out of the tree and meet every body whose reach box reaches below them.
@@ -48,9 +56,13 @@ class Broadphase {
   bool findPairs(std::vector<std::pair<int, int>>& pairs, size_t maxPairs, WorkerPool& pool = WorkerPool::callerOnly());
   const CollisionShape& shape(int body) const { return shapes_[static_cast<size_t>(body)]; }
 
-  // For tests and metrics: bodies moved in the tree by the last update, candidate pairs kept.
+  // For tests and metrics: bodies moved in the tree by the last update, candidate pairs kept, the
+  // tree's height (a leaf alone: 0).
   int movedLastUpdate() const { return moved_; }
   size_t candidatePairs() const { return candidates_.size(); }
+  int treeHeight() const;
+  // How many levels deeper than log2(leaves) the tree may grow before an update rebuilds it.
+  static int rebuildExcess(int leaves);
 
  private:
   struct Box {
