@@ -411,6 +411,46 @@ TEST(Rows, ContactRowsFormulatedOverOldOnesAreNewOnes) {
   }
 }
 
+// The soft step's colours are kept from the last step while the manifolds join the same bodies,
+// each moving or not as before (ConstraintSet::colourManifolds): the 20-level pyramid settled,
+// then one manifold dropped, then one body still (zero mass, as asleep). A set that colours each
+// list after another has the colours a new set finds for it; and the settled list's again once
+// it comes back.
+TEST(Colours, KeptOnlyWhileTheManifoldsAndTheirMovingBodiesAreTheSame) {
+  const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/pyramid.json");
+  SolverOverrides o;
+  o.set(&SolverSettings::colours, true);
+  const SolverSettings st = settingsFor(Algorithm::Soft, o);
+  World w(s.model, st, s.initial);
+  for (int k = 0; k < 30; ++k) ASSERT_TRUE(w.step().finite);
+  const StepInputs in = stepInputs(w);
+  const std::vector<BodyMass>& mass = in.mass;
+  const std::vector<Manifold> settled = w.manifolds();
+  std::vector<Manifold> dropped = settled;
+  dropped.erase(dropped.begin() + static_cast<long>(dropped.size() / 2));
+  std::vector<BodyMass> still = mass;
+  const int body = settled[settled.size() / 2].a;  // a body in the middle of the pyramid
+  ASSERT_GT(still[static_cast<size_t>(body)].invMass, 0);
+  still[static_cast<size_t>(body)] = BodyMass{};
+  ConstraintSet kept;
+  const auto expectColours = [&](const std::vector<Manifold>& ms, const std::vector<BodyMass>& m,
+                                  const char* what) -> std::vector<int> {
+    kept.build(s.model, ms, in.poses, m, st, st.dt, 1.0);
+    ConstraintSet fresh;
+    fresh.build(s.model, ms, in.poses, m, st, st.dt, 1.0);
+    EXPECT_FALSE(fresh.colourStart.empty()) << what;
+    EXPECT_EQ(kept.colourStart, fresh.colourStart) << what;
+    EXPECT_EQ(kept.colourOrder, fresh.colourOrder) << what;
+    return fresh.colourOrder;
+  };
+  const std::vector<int> first = expectColours(settled, mass, "settled");
+  expectColours(settled, mass, "settled again");
+  EXPECT_NE(expectColours(dropped, mass, "a manifold dropped"), first);
+  const std::vector<int> before = kept.colourOrder;
+  EXPECT_NE(expectColours(dropped, still, "a body still"), before);
+  expectColours(settled, mass, "settled once more");
+}
+
 // The sweep solves a manifold's friction rows through their couplings (J̌v̌ of the later rows moved
 // by the earlier rows' Δλ): the same Gauss-Seidel as row after row on the velocities, to
 // round-off. Two boxes stacked on the ground, nudged (friction holds them: its rows are off their

@@ -38,7 +38,6 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   speculative_ = settings.speculative;
   units.clear();
   blocks.clear();
-  couplings.clear();
   joints.clear();
 
   if (jointLambdaFirst_.size() != model.joints.size()) {
@@ -50,18 +49,43 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     }
     jointLambda_.assign(static_cast<size_t>(total), 0.0);
   }
-  // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
-  // is reset field by field, without a zero fill of the whole row (docs/benchmarks.md).
-  const size_t nm = manifolds.size();
+  // Per manifold on the step's threads: its points (summed below into where its first one goes),
+  // whether its pair bounces and, coloured, what the colouring reads of it; and per body the frame
+  // the contacts are formulated at. On the calling thread alone the manifolds' part took 0.1 ms a
+  // step of the 100-level pyramid, long enough for the other thread to fall asleep before the next
+  // job (docs/benchmarks.md, "s2's serial parts").
+  const size_t nm = manifolds.size(), nb = poses.size();
+  const bool coloured = settings.algorithm == Algorithm::Soft && settings.colours;
   manifoldPoint_.resize(nm + 1);
-  manifoldPoint_[0] = 0;
   bounces_.resize(nm);
+  colourKey_.resize(coloured ? nm : 0);
+  frames_.resize(nb);
+  constexpr size_t kGrain = 1024;
+  const size_t manifoldBlocks = (nm + kGrain - 1) / kGrain, bodyBlocks = (nb + kGrain - 1) / kGrain;
+  parallel(manifoldBlocks + bodyBlocks, 1, [&](size_t firstBlock, size_t lastBlock) {
+    for (size_t block = firstBlock; block < lastBlock; ++block) {
+      if (block >= manifoldBlocks) {
+        const size_t first = (block - manifoldBlocks) * kGrain, last = std::min(nb, first + kGrain);
+        for (size_t i = first; i < last; ++i) frames_[i] = Frame(poses[i]);
+        continue;
+      }
+      const size_t first = block * kGrain, last = std::min(nm, first + kGrain);
+      for (size_t k = first; k < last; ++k) {
+        const Manifold& m = manifolds[k];
+        manifoldPoint_[k + 1] = m.count;
+        bounces_[k] = m.restitution != 0;
+        if (coloured) colourKey_[k] = colourKey(m.a, m.b, mass);
+      }
+    }
+  });
+  manifoldPoint_[0] = 0;
   bool bounces = false;
   for (size_t k = 0; k < nm; ++k) {
-    manifoldPoint_[k + 1] = manifoldPoint_[k] + manifolds[k].count;
-    bounces_[k] = manifolds[k].restitution != 0;
-    bounces |= bounces_[k];
+    manifoldPoint_[k + 1] += manifoldPoint_[k];
+    bounces |= bounces_[k] != 0;
   }
+  // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
+  // is reset field by field, without a zero fill of the whole row (docs/benchmarks.md).
   deferred_ = deferAsked_ && model.joints.empty() && settings.warmStart && !bounces;
   resizeRewritten(rows, jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm));
   size_t next = 0;
@@ -106,7 +130,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   manifoldRow_.resize(nm + 1);
   // The rows: in manifold order, or coloured, by ascending colour (each colour's in manifold
   // order), so that a colour's rows are one block of memory.
-  colourManifolds(manifolds, mass, settings.algorithm == Algorithm::Soft && settings.colours);
+  colourManifolds(mass.size(), coloured);
   int at = static_cast<int>(next);
   for (size_t q = 0; q < nm; ++q) {
     const size_t k = colourStart.empty() ? q : static_cast<size_t>(colourOrder[q]);
@@ -115,12 +139,9 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   }
   manifoldRow_[nm] = at;
   resizeRewritten(frictions, nm);  // every element written below
-  couplings.resize(nm);  // manifold k's friction unit's, written below (finishAll numbers them so)
+  // Manifold k's friction unit's, written below (finishAll numbers them so), or deferred never read.
+  resizeRewritten(couplings, nm);
   resizeRewritten(contacts, static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
-  frames_.resize(poses.size());
-  parallel(poses.size(), 256, [&](size_t first, size_t last) {
-    for (size_t i = first; i < last; ++i) frames_[i] = Frame(poses[i]);
-  });
   const bool worldFrame = worldFrame_ = settings.contactFrame == ContactFrame::World;
   warm_ = settings.warmStart;
   exempt_ = settings.frictionExempt;
@@ -194,7 +215,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   });
   if (grouped) formulateLaneGroups();
   bouncing.clear();
-  for (size_t k = 0; k < nm; ++k)
+  for (size_t k = 0; k < nm && bounces; ++k)
     if (bounces_[k])
       for (int p = manifoldPoint_[k]; p < manifoldPoint_[k + 1]; ++p) bouncing.push_back(p);
   // Solve order: joints, then the contacts by contactOrder (unitOrder()). Split: every contact's
@@ -227,7 +248,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   if (!deferred_) forEachContactUnit(frictions, unitOrder_, normalUnits, frictionUnit);
   finishAll(mass, applyScale, true);
   // The active set each contact block ended the last step with is where this step's starts.
-  for (size_t k = 0; k < frictions.size(); ++k)
+  for (size_t k = 0; k < frictions.size() && !blocks.empty(); ++k)
     if (frictions[k].unit >= 0) {
       BlockData& d = blocks[static_cast<size_t>(units[static_cast<size_t>(frictions[k].unit)].block)];
       if (blocksInLanes_) d = laneBlocks_[k];
@@ -298,23 +319,35 @@ size_t ConstraintSet::manifoldBytes() const {
   return frictions.size() * sizeof(FrictionDef) + contacts.size() * sizeof(ContactDef);
 }
 
-void ConstraintSet::colourManifolds(const std::vector<Manifold>& manifolds, const std::vector<BodyMass>& mass, bool on) {
-  colourOrder.clear();
-  colourStart.clear();
-  if (!on) return;
+uint64_t ConstraintSet::colourKey(int a, int b, const std::vector<BodyMass>& mass) {
+  const bool da = mass[static_cast<size_t>(a)].invMass > 0, db = mass[static_cast<size_t>(b)].invMass > 0;
+  return uint64_t{static_cast<uint32_t>(a)} << 33 | uint64_t{da} << 32 | uint64_t{static_cast<uint32_t>(b)} << 1 | uint64_t{db};
+}
+
+void ConstraintSet::colourManifolds(size_t bodies, bool on) {
+  if (!on) {
+    colourOrder.clear();
+    colourStart.clear();
+    lastColourKey_.clear();
+    return;
+  }
+  // The colours are a function of the keys alone (each manifold's bodies and whether each moves):
+  // a step whose manifolds are the last one's (a settled scene) keeps them.
+  if (!colourStart.empty() && colourKey_ == lastColourKey_) return;
   // Greedy, in the step's order, as Box2D v3's constraint graph assigns them: a manifold between
   // two moving bodies takes the lowest colour below kDynamicColours neither body has yet; one
   // with a static (or sleeping) body, which the solve never moves and which joins every colour,
   // the highest from kColours - 1 down to 1 its moving body has not. The soft step solves them
   // from the highest colour down (docs/algorithms.md, "Colours").
-  const size_t nm = manifolds.size();
-  colourUsed_.assign(mass.size(), 0);
+  const size_t nm = colourKey_.size();
+  colourUsed_.assign(bodies, 0);
   colourOf_.resize(nm);
   int count[kColours + 1] = {};
   for (size_t k = 0; k < nm; ++k) {
-    const int a = manifolds[k].a, b = manifolds[k].b;
-    const bool da = mass[static_cast<size_t>(a)].invMass > 0, db = mass[static_cast<size_t>(b)].invMass > 0;
-    const uint64_t taken = (da ? colourUsed_[static_cast<size_t>(a)] : 0) | (db ? colourUsed_[static_cast<size_t>(b)] : 0);
+    const uint64_t key = colourKey_[k];
+    const size_t a = static_cast<size_t>(key >> 33), b = static_cast<size_t>(key >> 1 & 0x7fffffff);
+    const bool da = key >> 32 & 1, db = key & 1;
+    const uint64_t taken = (da ? colourUsed_[a] : 0) | (db ? colourUsed_[b] : 0);
     int col = kColours;
     if (da && db) {
       const uint64_t free = ~taken & ((1ull << kDynamicColours) - 1);
@@ -324,8 +357,8 @@ void ConstraintSet::colourManifolds(const std::vector<Manifold>& manifolds, cons
       if (free) col = 63 - __builtin_clzll(free);
     }
     if (col < kColours) {
-      if (da) colourUsed_[static_cast<size_t>(a)] |= 1ull << col;
-      if (db) colourUsed_[static_cast<size_t>(b)] |= 1ull << col;
+      if (da) colourUsed_[a] |= 1ull << col;
+      if (db) colourUsed_[b] |= 1ull << col;
     }
     colourOf_[k] = static_cast<unsigned char>(col);
     ++count[col];
@@ -337,6 +370,7 @@ void ConstraintSet::colourManifolds(const std::vector<Manifold>& manifolds, cons
   int at[kColours + 1];
   std::copy(colourStart.begin(), colourStart.end() - 1, at);
   for (size_t k = 0; k < nm; ++k) colourOrder[static_cast<size_t>(at[colourOf_[k]]++)] = static_cast<int>(k);
+  lastColourKey_ = colourKey_;
 }
 
 void ConstraintSet::findIslands(bool split) {

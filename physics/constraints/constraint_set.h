@@ -204,9 +204,13 @@ class ConstraintSet {
   std::vector<Frame> frames_;  // the poses contacts are formulated at, as rotation matrices
 
   void findIslands(bool split);
-  void colourManifolds(const std::vector<Manifold>& manifolds, const std::vector<BodyMass>& mass, bool on);
+  // The colours from colourKey_ (bodies: the model's count), or none.
+  void colourManifolds(size_t bodies, bool on);
+  // What the colouring reads of a manifold: its bodies, and whether each moves.
+  static uint64_t colourKey(int a, int b, const std::vector<BodyMass>& mass);
   std::vector<uint64_t> colourUsed_;  // per body: the colours its manifolds took
   std::vector<unsigned char> colourOf_;
+  std::vector<uint64_t> colourKey_, lastColourKey_;  // per manifold: this step's, and those the colours were found for
   // The order of the contact units: build() lays them out so, findIslands keeps it per island.
   enum class UnitOrder { NormalsFirst, FrictionFirst, Manifold };
   UnitOrder unitOrder_ = UnitOrder::NormalsFirst;

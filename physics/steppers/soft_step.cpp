@@ -105,9 +105,11 @@ class SoftStepper final : public Stepper {
           softOf_[k] = onStatic(c, ct.a, ct.b) ? kStaticSoft : kContactSoft;
         }
       });
-    dpV_.assign(nb, Vec3::Zero());
-    dpW_.assign(nb, Vec3::Zero());
-    beginSubSteps(c);
+    // Sized here; each body started by its block in the first sub-step's first job, not on the
+    // calling thread (docs/benchmarks.md, "s2's serial parts").
+    dpV_.resize(nb);
+    dpW_.resize(nb);
+    sizeSubSteps(c);
     prepareSweeps(c);
     const Pass solve{true, h, st.pushOut}, relax{false, h, st.pushOut};
 
@@ -116,6 +118,11 @@ class SoftStepper final : public Stepper {
     const bool perBody = st.warmStart && c.rowsHeld;
     for (int j = 0; j < n; ++j) {
       eachBodyBlock(c, [&](size_t first, size_t last) {
+        if (j == 0) {
+          beginSubSteps(c, first, last);
+          std::fill(dpV_.begin() + static_cast<long>(first), dpV_.begin() + static_cast<long>(last), Vec3::Zero());
+          std::fill(dpW_.begin() + static_cast<long>(first), dpW_.begin() + static_cast<long>(last), Vec3::Zero());
+        }
         addExternal(c, h, first, last);
         if (perBody) startSubStepImpulses(c, j, bodyPart(first, last));
       });

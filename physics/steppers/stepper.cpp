@@ -266,15 +266,28 @@ void recordSubStep(StepContext& c, int j) {
 }
 
 void beginSubSteps(StepContext& c) {
+  sizeSubSteps(c);
+  beginSubSteps(c, 0, c.bodies());
+}
+
+void sizeSubSteps(StepContext& c) {
   const size_t nb = c.bodies();
-  c.subPoses = c.poses;
-  c.sumV.assign(nb, Vec3::Zero());
-  c.sumW.assign(nb, Vec3::Zero());
+  c.subPoses.resize(nb);
+  c.sumV.resize(nb);
+  c.sumW.resize(nb);
   // Sized here, for every body, so that parts of the step (islands on threads) each fill their own.
   c.startV.resize(nb);
   c.startW.resize(nb);
   c.impV.resize(nb);
   c.impW.resize(nb);
+}
+
+void beginSubSteps(StepContext& c, size_t first, size_t last) {
+  for (size_t i = first; i < last; ++i) {
+    c.subPoses[i] = c.poses[i];
+    c.sumV[i] = Vec3::Zero();
+    c.sumW[i] = Vec3::Zero();
+  }
 }
 
 void advanceSubPoses(StepContext& c, int j, RotationRule rule) {

@@ -252,6 +252,10 @@ inline void recordSubStep(StepContext& c, int j, size_t i) {
 // Starts the coordinates of the sub-steps at the step's (before the first sub-step) and sizes the
 // warm start's per-body buffers (startV, impV, ...).
 void beginSubSteps(StepContext& c);
+// The same in two parts: the buffers sized, then bodies [first, last) started (a block of them on
+// the step's threads).
+void sizeSubSteps(StepContext& c);
+void beginSubSteps(StepContext& c, size_t first, size_t last);
 // Steps c.subPoses past recorded sub-step j with `rule`: the coordinates at t + (j+1) h/n, by
 // the same formulas s4 uses (so after the last sub-step they are s4's result). Of every body, or
 // of the listed ones.
