@@ -7,21 +7,42 @@
 // copy what the step will overwrite.
 #pragma once
 
+#include "physics/parallel.h"
+
 #include <cstddef>
 #include <vector>
 
 namespace substep {
 
+// The pages of [p, p + bytes) written once each, shared out on the pool's threads. Taking new
+// storage for a step's array, the thread that constructs its elements would otherwise take every
+// page fault alone (11-15 µs a fault on this kind of virtual machine: 35 ms for the 100-level
+// pyramid's contact definitions at its first step); faults on two threads take 0.6 of the time
+// (docs/benchmarks.md, "First steps on the threads"). Below kTouchedBytes it is not worth a job.
+constexpr size_t kTouchedBytes = 256 * 1024;
+inline void touchPages(void* p, size_t bytes, WorkerPool& pool) {
+  if (bytes < kTouchedBytes || pool.threads() == 1) return;
+  constexpr size_t kPage = 4096, kPagesABlock = 64;
+  volatile char* base = static_cast<char*>(p);
+  const size_t pages = (bytes + kPage - 1) / kPage;
+  pool.forRange(pages, kPagesABlock, [&](size_t first, size_t last, int) {
+    for (size_t i = first; i < last; ++i) base[i * kPage] = 0;
+  });
+  base[bytes - 1] = 0;  // the last page, when p is not at a page's start
+}
+
 // v resized to n, for a caller that writes every element before reading it: within the capacity a
 // plain resize; beyond it, the old elements dropped and room taken for n and a quarter more, or
 // for twice the old capacity if that is more (an array that keeps growing, a pile falling into
-// place, grows as often as std::vector would, not once every quarter).
+// place, grows as often as std::vector would, not once every quarter), its pages first touched on
+// the pool's threads.
 template <class T>
-void resizeRewritten(std::vector<T>& v, size_t n) {
+void resizeRewritten(std::vector<T>& v, size_t n, WorkerPool& pool = WorkerPool::callerOnly()) {
   if (n > v.capacity()) {
     const size_t room = n + n / 4 > 2 * v.capacity() ? n + n / 4 : 2 * v.capacity();
     v.clear();
     v.reserve(room);
+    touchPages(v.data(), room * sizeof(T), pool);
   }
   v.resize(n);
 }

@@ -274,7 +274,7 @@ bool World::geometry() {
   // In place (a settled scene, or one where a few pairs were made again): last step's list is
   // this step's, a kept manifold aged where it is rather than copied (816 bytes; 8 MB a step on
   // the 100-level pyramid), a made one written over whichever stood in its place.
-  std::vector<Manifold>& placed = inPlace ? manifolds_.keepInPlace() : manifolds_.place(at);
+  std::vector<Manifold>& placed = inPlace ? manifolds_.keepInPlace() : manifolds_.place(at, *pool_);
   pool_->forBlocks(blocks, [&](size_t blk, int) {
     const PairBlock& b = pairBlocks_[blk];
     uint32_t id = firstId + b.firstId;

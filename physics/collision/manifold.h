@@ -104,10 +104,11 @@ class ManifoldCache {
   static void kept(Manifold& m, const Manifold& old);
   void take(Manifold& m);
   // Or, for many threads: beginStep(true) keeps the storage of the list two steps old, place(n)
-  // makes this step's list n long for the caller to fill in pair order (every element written),
+  // makes this step's list n long for the caller to fill in pair order (every element written;
+  // new storage first touched on the pool's threads),
   // and claimIds(k) numbers k new points: the first of them, as k take()s would have.
-  std::vector<Manifold>& place(size_t n) {
-    resizeRewritten(current_, n);
+  std::vector<Manifold>& place(size_t n, WorkerPool& pool = WorkerPool::callerOnly()) {
+    resizeRewritten(current_, n, pool);
     return current_;
   }
   // Or, when the list is as long as last step's and each manifold kept stands where it stood (a

@@ -87,7 +87,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
   // is reset field by field, without a zero fill of the whole row (docs/benchmarks.md).
   deferred_ = deferAsked_ && model.joints.empty() && settings.warmStart && !bounces;
-  resizeRewritten(rows, jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm));
+  resizeRewritten(rows, jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm), workers());
   size_t next = 0;
   auto take = [&](int n) {
     Row* r = rows.data() + next;
@@ -138,10 +138,10 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     at += manifoldPoint_[k + 1] - manifoldPoint_[k] + 3;
   }
   manifoldRow_[nm] = at;
-  resizeRewritten(frictions, nm);  // every element written below
+  resizeRewritten(frictions, nm, workers());  // every element written below
   // Manifold k's friction unit's, written below (finishAll numbers them so), or deferred never read.
-  resizeRewritten(couplings, nm);
-  resizeRewritten(contacts, static_cast<size_t>(manifoldPoint_[nm]));  // every field written below
+  resizeRewritten(couplings, nm, workers());
+  resizeRewritten(contacts, static_cast<size_t>(manifoldPoint_[nm]), workers());  // every field written below
   const bool worldFrame = worldFrame_ = settings.contactFrame == ContactFrame::World;
   warm_ = settings.warmStart;
   exempt_ = settings.frictionExempt;
@@ -152,7 +152,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // same numbers as formulateManifold's; with contact blocks, their K and K⁻¹ too.
   const bool inLanes = inLanes_ = !deferred_ && lanesAsked_ && applyScale > 0 && nm > 0;
   blocksInLanes_ = inLanes && contactBlocks_;
-  if (blocksInLanes_) resizeRewritten(laneBlocks_, nm);
+  if (blocksInLanes_) resizeRewritten(laneBlocks_, nm, workers());
   // A5's lanes: the definitions first, then the groups in the runs' order. Only while the groups
   // fit in the core's L2 cache (about 1 KB a manifold; the 20-level pyramid's 400 manifolds do,
   // the 40-level one's 1640 do not): the sweeps stream them eight times a step, and formulated in

@@ -132,7 +132,7 @@ void ConstraintSet::formulateLaneGroups() {
   laneGroupStart_.push_back(start.back());
   runCount_ = static_cast<int>(start.size()) - 1;
   const size_t groups = laneGroupStart_.size() - 1;
-  resizeRewritten(laneGroups_, groups);
+  resizeRewritten(laneGroups_, groups, workers());
   const lanes::Formulation f = laneFormulation();
   // The groups take the manifolds in the runs' order, which no hardware prefetch follows: the
   // next group's definitions and rows are asked for while this one is formulated.

@@ -272,7 +272,7 @@ class SoftStepper final : public Stepper {
     const int* order = laneOrder_;
     c.stats.laneRuns = static_cast<int>(segments_.size());
     c.stats.laneGroups = static_cast<int>(groups);
-    resizeRewritten(groups_, groups);
+    resizeRewritten(groups_, groups, c.workers());
     const double h = c.h() / c.n();
     const bool deferred = cs.contactRowsDeferred();
     // Deferred in the world contact frame (the soft step's default), the kernel formulates the
@@ -405,7 +405,7 @@ class SoftStepper final : public Stepper {
   // as it would take them from the rows.
   void lanesToImpulses(StepContext& c) {
     ConstraintSet& cs = *c.constraints;
-    resizeRewritten(cs.impulses, cs.frictions.size());
+    resizeRewritten(cs.impulses, cs.frictions.size(), c.workers());
     eachLane(c, [&](const lanes::Group& g, int l, const FrictionDef& fd) {
       ConstraintSet::ManifoldImpulses& to = cs.impulses[static_cast<size_t>(g.manifold[l])];
       for (int q = 0; q < fd.normalCount; ++q) to.normal[q] = g.normal[q].lambda.x[l];
