@@ -16,9 +16,10 @@ namespace substep {
 
 // The pages of [p, p + bytes) written once each, shared out on the pool's threads. Taking new
 // storage for a step's array, the thread that constructs its elements would otherwise take every
-// page fault alone (11-15 µs a fault on this kind of virtual machine: 35 ms for the 100-level
-// pyramid's contact definitions at its first step); faults on two threads take 0.6 of the time
-// (docs/benchmarks.md, "First steps on the threads"). Below kTouchedBytes it is not worth a job.
+// page fault alone (11-15 µs a fault on this kind of virtual machine: the 100-level pyramid's
+// contact definitions, 2400 pages, were most of its first step's 32 ms of s2); faults on two
+// threads take 0.6 of the time (docs/benchmarks.md, "First steps on the threads"). Below
+// kTouchedBytes it is not worth a job.
 constexpr size_t kTouchedBytes = 256 * 1024;
 inline void touchPages(void* p, size_t bytes, WorkerPool& pool) {
   if (bytes < kTouchedBytes || pool.threads() == 1) return;

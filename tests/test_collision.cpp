@@ -54,6 +54,16 @@ Shape sphere(double r) {
   return s;
 }
 Quat rot(double angle, const Vec3& axis) { return Quat(Eigen::AngleAxisd(angle, axis.normalized())); }
+// A unit box named "b<index>" at x, into a model and its state.
+void addUnitBox(Model& m, State& s, const Vec3& x) {
+  Body b;
+  b.name = "b" + std::to_string(m.bodies.size());
+  b.shape = box(0.5, 0.5, 0.5);
+  m.bodies.push_back(b);
+  BodyState bs;
+  bs.x = x;
+  s.bodies.push_back(bs);
+}
 
 // The ground: a static box whose top face is y = 0.
 const Shape kGround = box(10, 0.5, 10);
@@ -334,15 +344,7 @@ TEST(Broadphase, QueriesOnThreadsFindEveryPairInOrderOnce) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> at(0.0, 12.0);
   State s;
-  for (int i = 0; i < 600; ++i) {
-    Body b;
-    b.name = "b" + std::to_string(i);
-    b.shape = box(0.5, 0.5, 0.5);
-    m.bodies.push_back(b);
-    BodyState bs;
-    bs.x = Vec3(at(rng), at(rng), at(rng));
-    s.bodies.push_back(bs);
-  }
+  for (int i = 0; i < 600; ++i) addUnitBox(m, s, Vec3(at(rng), at(rng), at(rng)));
   std::vector<std::pair<int, int>> expected;  // unturned unit boxes: their boxes overlap within 1 m on every axis
   for (int i = 0; i < 600; ++i)
     for (int j = i + 1; j < 600; ++j)
@@ -385,15 +387,7 @@ TEST(Broadphase, BoxesAndPlanesOnThreadsGiveThePairsInOrder) {
   plane(Vec3::UnitY(), 0.0);  // body 0: the ground, y = 0
   s.bodies.emplace_back();
   const int boxes = 5000, first = 1;
-  for (int i = 0; i < boxes; ++i) {
-    Body b;
-    b.name = "b" + std::to_string(i);
-    b.shape = box(0.5, 0.5, 0.5);
-    m.bodies.push_back(b);
-    BodyState bs;
-    bs.x = Vec3(at(rng), at(rng), at(rng)) * 2.0;
-    s.bodies.push_back(bs);
-  }
+  for (int i = 0; i < boxes; ++i) addUnitBox(m, s, Vec3(at(rng), at(rng), at(rng)) * 2.0);
   plane(Vec3::UnitX(), 1.0);  // the last body: a wall, x = 1
   s.bodies.emplace_back();
   const int wall = first + boxes;
@@ -444,15 +438,7 @@ TEST(Broadphase, MovedBodiesRebuildNoTreeWithinTheBound) {
   State s;
   const int levels = 100;
   for (int level = 0; level < levels; ++level)
-    for (int i = 0; i < levels - level; ++i) {
-      Body b;
-      b.name = "b" + std::to_string(m.bodies.size());
-      b.shape = box(0.5, 0.5, 0.5);
-      m.bodies.push_back(b);
-      BodyState bs;
-      bs.x = Vec3(1.02 * (i + 0.5 * level), 0.5 + level, 0);
-      s.bodies.push_back(bs);
-    }
+    for (int i = 0; i < levels - level; ++i) addUnitBox(m, s, Vec3(1.02 * (i + 0.5 * level), 0.5 + level, 0));
   const int n = static_cast<int>(m.bodies.size());
   // The bound: 2 log2(n) + 10 levels (rounded up) above a balanced tree's log2(n).
   const auto boundFor = [](int leaves) { return std::log2(leaves) + 2 * std::ceil(std::log2(leaves)) + 10; };
@@ -479,15 +465,7 @@ TEST(Broadphase, MovedBodiesRebuildNoTreeWithinTheBound) {
   Model row;
   State along;
   const int count = 1000;
-  for (int i = 0; i < count; ++i) {
-    Body b;
-    b.name = "r" + std::to_string(i);
-    b.shape = box(0.5, 0.5, 0.5);
-    row.bodies.push_back(b);
-    BodyState bs;
-    bs.x = Vec3(1.1 * i, 0, 0);
-    along.bodies.push_back(bs);
-  }
+  for (int i = 0; i < count; ++i) addUnitBox(row, along, Vec3(1.1 * i, 0, 0));
   const std::vector<double> rowStill(row.bodies.size(), 0.0);
   const std::vector<Vec3> rowMove(row.bodies.size(), Vec3::Zero());
   Broadphase conveyor(row);

@@ -184,8 +184,8 @@ class ConstraintSet {
 
   const Model* model_ = nullptr;
   WorkerPool* pool_ = nullptr;
+  WorkerPool& workers() const { return pool_ ? *pool_ : WorkerPool::callerOnly(); }  // the caller's alone without one
   // f(first, last) over [0, count) in ranges of `grain`, on the pool's threads when there is one.
-  WorkerPool& workers() const { return pool_ ? *pool_ : WorkerPool::callerOnly(); }
   template <class F>
   void parallel(size_t count, size_t grain, F f) {
     if (pool_) pool_->forRange(count, grain, [&](size_t first, size_t last, int) { f(first, last); });
