@@ -460,8 +460,8 @@ TEST(Broadphase, MovedBodiesRebuildNoTreeWithinTheBound) {
   ASSERT_EQ(bp.movedLastUpdate(), 3);
   EXPECT_GE(bp.treeHeight(), kept - 1);
   // A conveyor: a row of 1000 boxes, the first taken to the end of the row, one each update. Kept
-  // as FCL balances it a few nodes at a time, this tree grows 266 levels deep in 5000 updates; it
-  // is rebuilt once past the bound.
+  // as FCL balances it a few nodes at a time, this tree grows over 260 levels deep in 5000
+  // updates; it is rebuilt once past the bound.
   Model row;
   State along;
   const int count = 1000;

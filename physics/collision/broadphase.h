@@ -17,7 +17,7 @@
 // rebuilt the 5050 leaves nearly every time, 1.4 ms on the calling thread; the deeper tree it keeps
 // now (about 35 levels against 13) answers the moved bodies' queries as fast (docs/benchmarks.md,
 // "The broadphase tree's rebuilds"). The bound still holds a tree that keeps degrading: a row of
-// boxes taken from its front to its back, one an update, grows 266 levels deep without it.
+// boxes taken from its front to its back, one an update, grows over 260 levels deep without it.
 //
 // Static-static pairs, pairs a joint keeps apart and pairs the collision filter (model.h,
 // mayTouch) excludes are never pairs. Planes have unbounded boxes, on which FCL's tree build
