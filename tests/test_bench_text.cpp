@@ -1,5 +1,6 @@
 // substep-bench's printed ratios (app/bench/ratio_text.h): what a target's line shows must not
-// contradict its MET or NOT MET.
+// contradict its MET or NOT MET; and the speed-up --core-check says the cores allow.
+#include "app/bench/core_bound.h"
 #include "app/bench/ratio_text.h"
 
 #include <gtest/gtest.h>
@@ -17,4 +18,27 @@ TEST(BenchText, ARatioThatTwoPlacesRoundOntoItsBoundIsPrintedToFour) {
   EXPECT_EQ(ratioText(Ratio{1.5996, 1.44, 1.74}, 1.6), "1.5996x (1.4400-1.7400)");
   EXPECT_EQ(ratioText(Ratio{0.3504, 0.35, 0.351}, 0.35), "0.3504x (0.3500-0.3510)");
   EXPECT_EQ(ratioText(Ratio{1.5996, 1.44, 1.74}), "1.60x (1.44-1.74)");  // no bound: two places
+}
+
+// --core-check's bound (app/bench/core_bound.h): N threads at best share the work in proportion
+// to each core's own speed, on the N fastest cores.
+TEST(BenchCores, EqualCoresAllowNTimesOne) {
+  EXPECT_DOUBLE_EQ(coreBound({10.0, 10.0}, 2), 5.0);
+  EXPECT_DOUBLE_EQ(coreBound({10.0, 10.0, 10.0, 10.0}, 4), 2.5);
+  EXPECT_DOUBLE_EQ(coreBound({10.0}, 1), 10.0);
+}
+
+// Two vCPUs of this project's machine, measured: a core a third slower caps two threads at
+// 1.76x of the faster one, not 2x.
+TEST(BenchCores, ASlowerCoreLowersTheBound) {
+  const double best = coreBound({13.614, 10.333}, 2);
+  EXPECT_NEAR(best, 1 / (1 / 13.614 + 1 / 10.333), 1e-12);
+  EXPECT_NEAR(10.333 / best, 1.759, 1e-3);
+}
+
+TEST(BenchCores, OnlyTheFastestNCoresCountAndNoneIsNaN) {
+  EXPECT_DOUBLE_EQ(coreBound({40.0, 10.0, 10.0}, 2), 5.0);  // order given does not matter
+  EXPECT_DOUBLE_EQ(coreBound({10.0, 10.0}, 8), 5.0);        // more threads than cores timed
+  EXPECT_TRUE(std::isnan(coreBound({}, 2)));
+  EXPECT_TRUE(std::isnan(coreBound({10.0}, 0)));
 }

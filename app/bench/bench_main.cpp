@@ -10,7 +10,9 @@
 // the reported figure is the median over the repeats (the run with the median total, its stage
 // split with it; with an even count the two middle runs averaged). Repeats are interleaved
 // (repeat 1 of every case, then repeat 2, ...) so slow drift of the machine spreads over all
-// cases. Single-threaded.
+// cases. Single-threaded, unless --threads N adds each substep case on N threads (the speed-up,
+// and the end states' hashes equal); --core-check then also times it on one thread pinned to
+// each core, for the speed-up the cores' own speeds allow (app/bench/core_bound.h).
 //
 // What the speed buys is measured the same way for both engines, with our own definitions:
 // displacement from the start (after 1 s and at the end), the fastest body, the joints' anchor
@@ -20,6 +22,7 @@
 #include "lab/peers.h"
 #include "lab/chart.h"
 #include "lab/provenance.h"
+#include "app/bench/core_bound.h"
 #include "app/bench/ratio_text.h"
 #include "app/common.h"
 #include "physics/constraints/joints.h"
@@ -36,16 +39,19 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <sched.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -239,6 +245,11 @@ struct Result {
   bool repeatable = true;    // contacts, displacement, speed and joint errors the same in every repeat
   double ratio = NAN;        // median total / Bullet's median total on the same scene
   int threads = 1;           // substep cases: the threads a step ran on (--threads runs each case twice)
+  // --core-check, on a case's N-thread result: the cores timed, and per core its one-thread runs
+  // pinned there (one a repeat) and their median step time [s].
+  std::vector<int> cores;
+  std::vector<std::vector<Run>> alone;
+  std::vector<double> aloneMedian;
   std::string label() const { return threads == 1 ? c->label : std::string(c->label) + " x" + std::to_string(threads); }
 };
 
@@ -417,6 +428,24 @@ void printGoal(const std::vector<Comparison>& comps, std::ostream& out) {
 
 // --threads N: each substep case on N threads against itself on one, run for run, and whether
 // the two ended in the same state to the last bit (the end states' hashes).
+// --core-check on an N-thread result: the speed-up over the (unpinned) one-thread run that the
+// cores' own speeds allow at best, and how much of that best the N threads reached.
+struct CoreAllowance {
+  double bound = NAN;       // the shortest N-thread step the cores allow [s] (coreBound)
+  double speedUp = NAN;     // one thread's median step over that bound
+  double efficiency = NAN;  // that bound over the N threads' median step
+  bool valid() const { return !std::isnan(bound); }
+};
+
+CoreAllowance coreAllowance(const Result& threaded, const Result& one) {
+  CoreAllowance a;
+  a.bound = coreBound(threaded.aloneMedian, threaded.threads);
+  if (!a.valid()) return a;
+  a.speedUp = one.median.total / a.bound;
+  a.efficiency = a.bound / threaded.median.total;
+  return a;
+}
+
 void printThreads(const std::vector<Result>& results, std::ostream& out) {
   bool header = false;
   for (const Result& r : results) {
@@ -438,7 +467,16 @@ void printThreads(const std::vector<Result>& results, std::ostream& out) {
                   one->median.total * 1e3, r.median.total * 1e3, ratioText(q).c_str(), hashText(one->median.endHash).c_str(),
                   hashText(r.median.endHash).c_str(), one->median.endHash == r.median.endHash ? "yes" : "NO");
     out << line;
+    const CoreAllowance a = coreAllowance(r, *one);
+    if (!a.valid()) continue;
+    out << "    one thread pinned to each core:";
+    for (size_t k = 0; k < r.cores.size(); ++k)
+      out << (k ? "," : "") << " core " << r.cores[k] << " " << fmt("%.3f", r.aloneMedian[k] * 1e3) << " ms";
+    out << "; " << r.threads << " threads could take " << fmt("%.3f", a.bound * 1e3) << " ms at best, a speed-up of at most "
+        << fmt("%.2fx", a.speedUp) << "; reached " << fmt("%.0f", 100 * a.efficiency) << " % of that\n";
   }
+  if (header && std::any_of(results.begin(), results.end(), [](const Result& r) { return !r.cores.empty(); }))
+    out << "  (at best: each core working in proportion to its own speed, nothing serial, nothing lost to sharing)\n";
 }
 
 // Issue 20's targets, where their cases and scenes ran: the soft step and A5 (pyramid.json's
@@ -488,7 +526,10 @@ void printTargets(const std::vector<Result>& results, std::ostream& out) {
     out << "  " << t.scene << " " << j.one->c->label;
     if (t.speedUp) out << " on " << j.other->threads << " threads: speed-up at least " << fmt("%.2fx", t.bound);
     else out << ": at most " << fmt("%.2fx", t.bound) << " Bullet's step time";
-    out << ": " << (j.met ? "MET" : "NOT MET") << " (" << ratioText(j.ratio, t.bound) << ")\n";
+    out << ": " << (j.met ? "MET" : "NOT MET") << " (" << ratioText(j.ratio, t.bound) << ")";
+    const CoreAllowance a = t.speedUp ? coreAllowance(*j.other, *j.one) : CoreAllowance{};
+    if (a.valid()) out << "; the cores allowed at most " << fmt("%.2fx", a.speedUp);
+    out << "\n";
   }
 }
 
@@ -710,6 +751,7 @@ struct Options {
   bool quick = false;
   bool scaling = false;
   int threads = 1;      // > 1: every substep case also on this many threads
+  bool coreCheck = false;  // with threads > 1: each N-thread case also on one thread pinned to each core
   std::vector<int> sizes{100, 300, 1000, 3000, 10000};
   std::string command;  // the command line, for the JSON
 };
@@ -778,7 +820,39 @@ std::optional<Result> planCase(const Scene& scene, size_t index, const std::stri
   return r;
 }
 
-BenchPlan planBench(const std::vector<std::string>& sceneNames, const std::vector<const Case*>& cases, int threads) {
+// The cores this process may run on (its affinity mask), the first kMaxCheckedCores of them:
+// --core-check times a case on each.
+constexpr size_t kMaxCheckedCores = 16;
+std::vector<int> allowedCores() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) != 0)
+    throw std::runtime_error(std::string("--core-check: cannot read this process's cores: ") + std::strerror(errno));
+  std::vector<int> cores;
+  for (int c = 0; c < CPU_SETSIZE && cores.size() < kMaxCheckedCores; ++c)
+    if (CPU_ISSET(c, &set)) cores.push_back(c);
+  return cores;
+}
+
+// Runs f() with the calling thread on `core` alone, then gives it back the cores it had. A World
+// on one thread steps on its caller, so the whole step runs there.
+template <class F>
+auto onCore(int core, F f) {
+  cpu_set_t before, only;
+  CPU_ZERO(&only);
+  CPU_SET(core, &only);
+  if (sched_getaffinity(0, sizeof before, &before) != 0 || sched_setaffinity(0, sizeof only, &only) != 0)
+    throw std::runtime_error("--core-check: cannot pin the benchmark to core " + std::to_string(core) + ": " +
+                             std::strerror(errno));
+  struct Restore {
+    cpu_set_t* mask;
+    ~Restore() { sched_setaffinity(0, sizeof *mask, mask); }
+  } restore{&before};
+  return f();
+}
+
+BenchPlan planBench(const std::vector<std::string>& sceneNames, const std::vector<const Case*>& cases, int threads,
+                    const std::vector<int>& checkedCores) {
   BenchPlan plan;
   std::vector<std::string> names;
   plan.scenes.reserve(sceneNames.size());  // results point at their scene's model
@@ -797,6 +871,8 @@ BenchPlan planBench(const std::vector<std::string>& sceneNames, const std::vecto
         plan.results.push_back(*r);
         if (threads > 1 && c->engine() == EngineKind::Substep) {  // the same case on `threads` threads
           r->threads = r->settings.threads = threads;
+          r->cores = checkedCores;
+          r->alone.resize(checkedCores.size());
           plan.results.push_back(std::move(*r));
         }
       }
@@ -815,7 +891,8 @@ struct TimedRuns {
 std::string printHeader(const Options& opt, const std::vector<Result>& results) {
   std::cout << "substep-bench  " << utcNow() << "  " << cpuModel() << ", " << std::thread::hardware_concurrency()
             << " hardware threads, "
-            << (opt.threads > 1 ? "substep cases on 1 and " + std::to_string(opt.threads) + " threads, the rest on one"
+            << (opt.threads > 1 ? "substep cases on 1 and " + std::to_string(opt.threads) + " threads, the rest on one" +
+                                      (opt.coreCheck ? " (and on one thread pinned to each core)" : "")
                                 : std::string("single-threaded runs"))
             << "; soft step lanes " << lanes::kernel().name << "; build " << SUBSTEP_BUILD_TYPE << "; Bullet "
             << bulletVersion() << ", ODE " << lab::peerVersion(kOdePeer) << ", MuJoCo " << lab::peerVersion(kMujocoPeer)
@@ -832,15 +909,26 @@ std::string printHeader(const Options& opt, const std::vector<Result>& results) 
 // Repeat k of every case before repeat k + 1 of any, so that slow drift of the machine spreads over all cases.
 void timeRepeats(BenchPlan& plan, int steps, int repeat) {
   std::vector<double> stepTimes(static_cast<size_t>(steps));
-  const int totalRuns = repeat * static_cast<int>(plan.results.size());
+  int runsPerRepeat = 0;
+  for (const Result& r : plan.results) runsPerRepeat += 1 + static_cast<int>(r.cores.size());
+  const int totalRuns = repeat * runsPerRepeat;
   int done = 0;
+  const auto timed = [&](const Result& r, const SolverSettings& settings, const std::string& label, int rep) {
+    Run run = runCase(plan.scenes[r.sceneIndex], *r.c, settings, steps, stepTimes);
+    ++done;
+    std::fprintf(stderr, "[%d/%d] %-8s %-15s repeat %d/%d: %.3f ms/step\n", done, totalRuns, r.scene.c_str(),
+                 label.c_str(), rep + 1, repeat, run.total * 1e3);
+    return run;
+  };
   for (int rep = 0; rep < repeat; ++rep) {
     for (Result& r : plan.results) {
-      Run run = runCase(plan.scenes[r.sceneIndex], *r.c, r.settings, steps, stepTimes);
-      ++done;
-      std::fprintf(stderr, "[%d/%d] %-8s %-15s repeat %d/%d: %.3f ms/step\n", done, totalRuns, r.scene.c_str(),
-                   r.label().c_str(), rep + 1, repeat, run.total * 1e3);
-      r.runs.push_back(run);
+      r.runs.push_back(timed(r, r.settings, r.label(), rep));
+      // --core-check: right after the N-thread run, the case on one thread on each core in turn.
+      SolverSettings one = r.settings;
+      one.threads = 1;
+      for (size_t k = 0; k < r.cores.size(); ++k)
+        r.alone[k].push_back(
+            onCore(r.cores[k], [&] { return timed(r, one, std::string(r.c->label) + " core " + std::to_string(r.cores[k]), rep); }));
     }
   }
 }
@@ -862,6 +950,11 @@ bool aggregate(std::vector<Result>& results) {
     for (const Run& run : r.runs) {
       r.repeatable = r.repeatable && sameEnd(run, r.runs[0]);
       allFinite = allFinite && run.finite;
+    }
+    r.aloneMedian.clear();
+    for (const std::vector<Run>& core : r.alone) {
+      for (const Run& run : core) r.repeatable = r.repeatable && sameEnd(run, r.runs[0]);  // one thread: the same end
+      r.aloneMedian.push_back(medianRun(core).total);
     }
   }
   for (Result& r : results)
@@ -927,6 +1020,15 @@ nlohmann::json resultJson(const Result& r) {
   j["vs_bullet"] = std::isnan(r.ratio) ? nlohmann::json(nullptr) : nlohmann::json(r.ratio);
   j["spread"] = spread(r);
   j["repeatable"] = r.repeatable;
+  if (!r.cores.empty()) {
+    nlohmann::json cores = nlohmann::json::array();
+    for (size_t k = 0; k < r.cores.size(); ++k) {
+      nlohmann::json runs = nlohmann::json::array();
+      for (const Run& run : r.alone[k]) runs.push_back(run.total * 1e3);
+      cores.push_back({{"core", r.cores[k]}, {"one_thread_ms", r.aloneMedian[k] * 1e3}, {"repeats_ms", runs}});
+    }
+    j["core_check"] = {{"cores", cores}, {"best_ms", coreBound(r.aloneMedian, r.threads) * 1e3}};
+  }
   nlohmann::json reps = nlohmann::json::array();
   for (const Run& run : r.runs) reps.push_back(runJson(run, *r.model));
   j["repeats"] = reps;
@@ -974,6 +1076,7 @@ nlohmann::json benchJson(const Options& opt, const BenchPlan& plan, const TimedR
   for (const Comparison& c : compare(plan.results)) doc["comparisons"].push_back(comparisonJson(c));
   doc["bullet_skipped"] = plan.skipped;
   doc["threads"] = opt.threads;
+  doc["core_check"] = opt.coreCheck;
   doc["targets"] = nlohmann::json::array();
   for (const TargetResult& j : judgeTargets(plan.results))
     doc["targets"].push_back({{"scene", j.target->scene},
@@ -982,6 +1085,11 @@ nlohmann::json benchJson(const Options& opt, const BenchPlan& plan, const TimedR
                               {"bound", j.target->bound},
                               {"threads", j.target->speedUp ? j.other->threads : 1},
                               {"ratio", ratioJson(j.ratio)},
+                              {"cores_allow_at_most",
+                               [&]() -> nlohmann::json {
+                                 const CoreAllowance a = j.target->speedUp ? coreAllowance(*j.other, *j.one) : CoreAllowance{};
+                                 return a.valid() ? nlohmann::json(a.speedUp) : nlohmann::json(nullptr);
+                               }()},
                               {"met", j.met}});
   return doc;
 }
@@ -994,7 +1102,9 @@ int bench(const Options& opt) {
     throw UsageError("--threads: the scaling mode runs on one thread (run the piles with --scenes bench/pile_10000 --threads N)");
   if (opt.scaling) return scaling(cases, opt.sizes, opt.steps, opt.repeat, opt.json);
   if (!opt.json.empty()) checkJsonPath(opt.json);
-  BenchPlan plan = planBench(opt.scenes, cases, opt.threads);
+  if (opt.coreCheck && opt.threads < 2)
+    throw UsageError("--core-check: it times the cases run on --threads N against each core alone; give --threads 2 or more");
+  BenchPlan plan = planBench(opt.scenes, cases, opt.threads, opt.coreCheck ? allowedCores() : std::vector<int>{});
   TimedRuns t;
   t.source = printHeader(opt, plan.results);
   t.loadBefore = loadAverage();
@@ -1040,6 +1150,10 @@ int main(int argc, char** argv) {
                  "Also run every substep case on N threads: the speed-up over one thread and whether the end states' "
                  "hashes are equal (default 1: single-threaded runs only)")
       ->check(CLI::Range(1, 256));
+  app.add_flag("--core-check", opt.coreCheck,
+               "With --threads N: after each N-thread run, the same case on one thread pinned to each core in turn; "
+               "prints each core's own step time and the speed-up those speeds allow at best (on a shared virtual "
+               "machine the cores may differ, and no code reaches N times one core)");
   app.add_flag("--quick", opt.quick, "Smoke test: 10 steps per run unless --steps is given");
   app.add_flag("--scaling", opt.scaling,
                "Scaling mode: piles of --sizes boxes, the log-log slope of step time against the count and the "
