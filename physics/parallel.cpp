@@ -26,10 +26,8 @@ uint64_t generation(uint64_t s) { return s >> 32; }
 // More threads than the machine runs at once only wait for each other (a scene or a recording
 // may ask for 256): at most twice the cores, so that tests of uneven splits still run on a small
 // machine. The trajectory does not depend on the number.
-static int usableThreads(int asked) {
-  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  return std::max(1, std::min(asked, 2 * cores));
-}
+static int machineCores() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
+static int usableThreads(int asked) { return std::max(1, std::min(asked, 2 * machineCores())); }
 
 std::atomic<bool> WorkerPool::lastFirst_{false};
 
@@ -39,6 +37,7 @@ WorkerPool& WorkerPool::callerOnly() {
 }
 
 WorkerPool::WorkerPool(int threads) : threads_(usableThreads(threads)) {
+  mayStayAwake_ = threads_ <= machineCores();  // read by the workers, which start below
   shares_.reset(new Share[static_cast<size_t>(threads_)]);
   try {
     for (int t = 1; t < threads_; ++t) workers_.emplace_back([this, t] { work(t); });
@@ -110,8 +109,10 @@ void WorkerPool::work(int thread) {
   for (;;) {
     uint64_t s = state_.load(std::memory_order_acquire);
     for (int spin = 0; generation(s) == seen; ++spin) {
-      if (spin < kSpinRounds) {
-        SUBSTEP_PAUSE();
+      const bool awake = mayStayAwake_ && busy_.load(std::memory_order_relaxed) > 0;
+      if (spin < kSpinRounds || awake) {
+        if (spin < kSpinRounds) SUBSTEP_PAUSE();
+        else std::this_thread::yield();
         s = state_.load(std::memory_order_acquire);
         continue;
       }

@@ -60,6 +60,26 @@ class WorkerPool {
     run(blocks, [](void* ctx, size_t b, int t) { (*static_cast<Callable*>(ctx))(b, t); }, &f);
   }
 
+  // While one lives (World::step holds one), the workers wait for the next job awake, spinning and
+  // then yielding, never asleep: a step's serial parts between jobs (the colouring, the broadphase
+  // tree) outlast a worker's spin, and waking a sleeping thread on this project's virtual machine
+  // took 30-100 µs, at times milliseconds (docs/benchmarks.md, "Workers kept awake through a
+  // step"). A pool with more threads than cores sleeps as before: there a waiting worker would
+  // take a core from one with work.
+  class Busy {
+   public:
+    explicit Busy(WorkerPool& pool) : pool_(pool) { pool_.busy_.fetch_add(1, std::memory_order_relaxed); }
+    ~Busy() { pool_.busy_.fetch_sub(1, std::memory_order_relaxed); }
+    Busy(const Busy&) = delete;
+    Busy& operator=(const Busy&) = delete;
+
+   private:
+    WorkerPool& pool_;
+  };
+
+  // Workers asleep, waiting for a job (for tests).
+  int sleeping() const { return sleepers_.load(std::memory_order_seq_cst); }
+
   // f(begin, end, thread) over [0, count) in ranges of `grain` items.
   template <class F>
   void forRange(size_t count, size_t grain, F&& f) {
@@ -95,6 +115,8 @@ class WorkerPool {
   std::unique_ptr<Share[]> shares_;  // one a thread
   alignas(64) std::atomic<int> left_{0};
   alignas(64) std::atomic<int> sleepers_{0};
+  alignas(64) std::atomic<int> busy_{0};  // Busy objects alive
+  bool mayStayAwake_ = true;              // no more threads than cores
   std::atomic<bool> stop_{false};
   std::mutex m_;
   std::condition_variable cv_;

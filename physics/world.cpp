@@ -391,6 +391,7 @@ const StepReport& World::step() {
     state_.step += 1;
     return report_;
   }
+  const WorkerPool::Busy busy(*pool_);  // the step's workers stay awake between its jobs
   if (!geometry()) return report_;
   if (!asleep_.empty()) wakeTouched();
   report_.times.s1 = since(t0);
