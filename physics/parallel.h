@@ -63,7 +63,7 @@ class WorkerPool {
   // While one lives (World::step holds one), the workers wait for the next job awake, spinning and
   // then yielding, never asleep: a step's serial parts between jobs (the colouring, the broadphase
   // tree) outlast a worker's spin, and waking a sleeping thread on this project's virtual machine
-  // took 30-100 µs, at times milliseconds (docs/benchmarks.md, "Workers kept awake through a
+  // took 10-100 µs, at times milliseconds (docs/benchmarks.md, "Workers kept awake through a
   // step"). A pool with more threads than cores sleeps as before: there a waiting worker would
   // take a core from one with work.
   class Busy {

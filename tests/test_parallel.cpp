@@ -77,7 +77,7 @@ TEST(WorkerPool, ABlockThatThrowsIsRethrownToTheCaller) {
 
 // Between two jobs a worker spins a while and then sleeps, unless a Busy lives (World::step holds
 // one): then it waits awake however long the caller works alone, and the next job finds it
-// there instead of waking it (30-100 µs on this project's virtual machine).
+// there instead of waking it (10-100 µs on this project's virtual machine, at times milliseconds).
 TEST(WorkerPool, ABusyKeepsTheWorkersAwakeBetweenJobs) {
   if (std::thread::hardware_concurrency() < 2) GTEST_SKIP() << "one core: a pool of two sleeps as before";
   WorkerPool pool(2);

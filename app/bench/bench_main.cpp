@@ -426,8 +426,6 @@ void printGoal(const std::vector<Comparison>& comps, std::ostream& out) {
   }
 }
 
-// --threads N: each substep case on N threads against itself on one, run for run, and whether
-// the two ended in the same state to the last bit (the end states' hashes).
 // --core-check on an N-thread result: the speed-up over the (unpinned) one-thread run that the
 // cores' own speeds allow at best, and how much of that best the N threads reached.
 struct CoreAllowance {
@@ -446,6 +444,8 @@ CoreAllowance coreAllowance(const Result& threaded, const Result& one) {
   return a;
 }
 
+// --threads N: each substep case on N threads against itself on one, run for run, and whether
+// the two ended in the same state to the last bit (the end states' hashes).
 void printThreads(const std::vector<Result>& results, std::ostream& out) {
   bool header = false;
   for (const Result& r : results) {
