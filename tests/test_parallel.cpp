@@ -80,20 +80,30 @@ TEST(WorkerPool, ABlockThatThrowsIsRethrownToTheCaller) {
 // there instead of waking it (10-100 µs on this project's virtual machine, at times milliseconds).
 TEST(WorkerPool, ABusyKeepsTheWorkersAwakeBetweenJobs) {
   if (std::thread::hardware_concurrency() < 2) GTEST_SKIP() << "one core: a pool of two sleeps as before";
+  using Clock = std::chrono::steady_clock;
   WorkerPool pool(2);
+  // Jobs until the worker runs: one asleep since the pool started is woken by the next job, and
+  // a virtual machine has taken milliseconds to run it again.
+  const auto awaken = [&] {
+    const auto until = Clock::now() + std::chrono::seconds(5);
+    do pool.forBlocks(2, [](size_t, int) {});
+    while (pool.sleeping() > 0 && Clock::now() < until);
+    return pool.sleeping() == 0;
+  };
   const auto sleptWithin = [&](std::chrono::milliseconds gap) {
-    pool.forBlocks(2, [](size_t, int) {});  // the worker is about now
-    const auto until = std::chrono::steady_clock::now() + gap;
-    while (std::chrono::steady_clock::now() < until)
+    const auto until = Clock::now() + gap;
+    while (Clock::now() < until)
       if (pool.sleeping() > 0) return true;
     return false;
   };
   {
     const WorkerPool::Busy busy(pool);
+    ASSERT_TRUE(awaken()) << "the worker never ran";
     EXPECT_FALSE(sleptWithin(std::chrono::milliseconds(50))) << "asleep while a Busy lived";
   }
+  ASSERT_TRUE(awaken()) << "the worker never ran";
   EXPECT_TRUE(sleptWithin(std::chrono::milliseconds(2000))) << "awake two seconds after the last Busy ended";
-  // Awake again for the next Busy's jobs, and every block still done once.
+  // Jobs under a Busy again: every block still done once.
   const WorkerPool::Busy busy(pool);
   std::atomic<int> n{0};
   pool.forBlocks(100, [&](size_t, int) { n.fetch_add(1); });
