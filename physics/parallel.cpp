@@ -109,10 +109,14 @@ void WorkerPool::work(int thread) {
   for (;;) {
     uint64_t s = state_.load(std::memory_order_acquire);
     for (int spin = 0; generation(s) == seen; ++spin) {
-      const bool awake = mayStayAwake_ && busy_.load(std::memory_order_relaxed) > 0;
-      if (spin < kSpinRounds || awake) {
-        if (spin < kSpinRounds) SUBSTEP_PAUSE();
-        else std::this_thread::yield();
+      if (spin < kSpinRounds) {
+        SUBSTEP_PAUSE();
+        s = state_.load(std::memory_order_acquire);
+        continue;
+      }
+      if (mayStayAwake_ && busy_.load(std::memory_order_relaxed) > 0) {  // a Busy: no sleep
+        spin = kSpinRounds;  // held there, however long the Busy lasts (no overflow)
+        std::this_thread::yield();
         s = state_.load(std::memory_order_acquire);
         continue;
       }
