@@ -5,12 +5,17 @@
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
-#define SUBSTEP_PAUSE() _mm_pause()
-#else
-#define SUBSTEP_PAUSE() std::this_thread::yield()
 #endif
 
 namespace substep {
+
+void spinPause() {
+#if defined(__x86_64__) || defined(__i386__)
+  _mm_pause();
+#else
+  std::this_thread::yield();
+#endif
+}
 
 namespace {
 
@@ -94,7 +99,7 @@ void WorkerPool::run(size_t blocks, Fn fn, void* ctx) {
   const uint64_t s = state_.fetch_or(kClosed, std::memory_order_acq_rel);
   const int joined = static_cast<int>(s & kCount);
   for (int spin = 0; left_.load(std::memory_order_acquire) < joined; ++spin) {
-    if (spin < kSpinRounds) SUBSTEP_PAUSE();
+    if (spin < kSpinRounds) spinPause();
     else std::this_thread::yield();
   }
   if (error_) {
@@ -110,7 +115,7 @@ void WorkerPool::work(int thread) {
     uint64_t s = state_.load(std::memory_order_acquire);
     for (int spin = 0; generation(s) == seen; ++spin) {
       if (spin < kSpinRounds) {
-        SUBSTEP_PAUSE();
+        spinPause();
         s = state_.load(std::memory_order_acquire);
         continue;
       }

@@ -25,6 +25,9 @@ namespace substep {
 // give both threads work.
 constexpr size_t kBodyBlock = 1024;
 
+// One round of a spin-wait: x86's PAUSE (the core's other thread runs meanwhile), elsewhere a yield.
+void spinPause();
+
 class WorkerPool {
  public:
   // threads >= 1; 1 runs everything on the caller. Holds at most twice the machine's cores, and

@@ -247,9 +247,9 @@ std::vector<SettingSpec> makeTable() {
        &S::lanes, same(1), {}},
       {"threads", "", "threads", K::Integer, {1, limits::kMaxThreads}, {}, kEvery, O::Limit, "", kNone,
        "Threads a step runs on: the broadphase's queries, the narrowphase, the formulation, the soft step's "
-       "contact colours, levels or islands and A5's islands are shared out; the trajectory is the same to the last bit for "
-       "any number (1 in the bench and the lab; serve and render: the machine's cores for scenes of 3000 moving "
-       "bodies or more)",
+       "contact colours, levels or islands and A5's islands (a large one unit by unit) are shared out; the "
+       "trajectory is the same to the last bit for any number (1 in the bench and the lab; serve and render: the "
+       "machine's cores for scenes of 3000 moving bodies or more)",
        &S::threads, same(1), {}},
       {"direct_max_rows", "", "direct-max-rows", K::Integer, {1, 20000}, {}, {A::A1}, O::Limit, "rows<=%s", kNone,
        "a1: the largest MLCP it forms as a dense matrix [rows]; larger scenes are refused", &S::directMaxRows,

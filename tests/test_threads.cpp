@@ -87,6 +87,27 @@ TEST(Threads, TrajectoriesAreBitIdenticalForAnyNumberOfThreads) {
   }
 }
 
+// An island too large to go to one thread whole: A5 shares its sweeps out unit by unit, each unit
+// solved once the units before it on its bodies are (UnitLevels), from 2048 units (the stepper's
+// kLevelled). The 40-level pyramid is one island of some 3300 units; under pyramid.json's A5 settings and under A5's defaults (τ > 0: the
+// rows' biases refreshed between sub-steps, on the threads too) it steps the same on one, two and
+// three threads.
+TEST(Threads, AnIslandSweptUnitByUnitOnTheThreadsStepsTheSame) {
+  const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/atlas/pyramid_40.json");
+  for (const char* spec : {"a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", "a5"}) {
+    const SolverSettings st = resolve(s.solver.merged(expandMethodSpec(spec)[0].overrides));
+    {  // the case this test is for
+      World w(s.model, st, s.initial);
+      w.step();
+      ASSERT_EQ(w.constraints().islandCount(), 1) << spec;
+      ASSERT_GE(w.constraints().units.size(), 2048u) << spec;
+    }
+    const std::vector<std::string> one = trajectory(s, st, 1, 30);
+    for (int threads : {2, 3})
+      ASSERT_EQ(firstDifference(one, trajectory(s, st, threads, 30)), "") << spec << " on " << threads << " threads";
+  }
+}
+
 // Threads take a job's blocks in whatever order they ask for them, so a block that reads what
 // another block of its job writes gives a step that depends on the race. Taken last first on one
 // thread (WorkerPool::takeBlocksLastFirst), every such read comes before the write: the scenes and

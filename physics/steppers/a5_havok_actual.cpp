@@ -52,7 +52,8 @@ class HavokActualStepper final : public Stepper {
     // numbers as all at once. The stable-row prediction works on every body at once: one part.
     // (A step that is one island, a pyramid, gets the whole without index lists from island(0).)
     // On more than one thread the islands are shared out: an island's rows and moving bodies are
-    // its own, and static ones are only read (solves write back moving bodies alone).
+    // its own, and static ones are only read (solves write back moving bodies alone). An island
+    // too large for one thread (a pyramid, a heap) is shared out itself, unit by unit.
     WorkerPool& pool = c.workers();
     parts_.resize(static_cast<size_t>(pool.threads()));
     for (PartScratch& s : parts_) s.residual = 0;
@@ -62,17 +63,25 @@ class HavokActualStepper final : public Stepper {
     inLanes_ = !cs.laneGroups().empty();  // asked for by asksLaneGroups, granted by build()
     if (stableOnly || inLanes_) {
       solvePart(c, cs.whole(nb), stableOnly, parts_[0]);
-    } else if (pool.threads() == 1 || cs.islandCount() == 1) {
+    } else if (pool.threads() == 1) {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly, parts_[0]);
     } else {
+      // Islands of kLevelled units or more, one after another, each on every thread (UnitLevels
+      // shares its sweeps out); then the others, each to one thread whole.
+      whole_.clear();
+      for (int k = 0; k < cs.islandCount(); ++k) {
+        const ConstraintPart island = cs.island(k);
+        if (island.units.count >= kLevelled && levels_.build(cs, island, nb)) solvePart(c, island, stableOnly, parts_[0], &levels_);
+        else whole_.push_back(k);
+      }
       // Runs of neighbouring islands a thread, not one: islands next to each other on two
       // threads share the cache lines of their boundary bodies (velocities, sums, sub-steps).
-      const size_t islands = static_cast<size_t>(cs.islandCount());
-      const size_t grain = std::max<size_t>(1, islands / (16 * static_cast<size_t>(pool.threads())));
-      pool.forRange(islands, grain, [&](size_t first, size_t last, int thread) {
-        for (size_t k = first; k < last; ++k)
-          solvePart(c, cs.island(static_cast<int>(k)), stableOnly, parts_[static_cast<size_t>(thread)]);
-      });
+      const size_t grain = std::max<size_t>(1, whole_.size() / (16 * static_cast<size_t>(pool.threads())));
+      if (whole_.size() == 1) solvePart(c, cs.island(whole_[0]), stableOnly, parts_[0]);
+      else if (whole_.size() > 1)
+        pool.forRange(whole_.size(), grain, [&](size_t first, size_t last, int thread) {
+          for (size_t k = first; k < last; ++k) solvePart(c, cs.island(whole_[k]), stableOnly, parts_[static_cast<size_t>(thread)]);
+        });
     }
     for (const PartScratch& s : parts_) c.stats.residual = std::max(c.stats.residual, s.residual);
     c.stats.iterations = n * st.iterations;
@@ -98,9 +107,22 @@ class HavokActualStepper final : public Stepper {
     double residual = 0;
   };
 
-  void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly, PartScratch& scratch) {
-    std::vector<Refreshed>& targets = scratch.targets;
-    std::vector<Refreshed>& speculative = scratch.speculative;
+  // With `levels` (built for this part), the part is shared out among the threads: its sweeps by
+  // the levels, its passes over rows and bodies in blocks, the rows it refreshes listed in the
+  // scratch of the thread that found them (parts_[thread]). Else all on this thread, in `scratch`.
+  void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly, PartScratch& scratch,
+                 UnitLevels* levels = nullptr) {
+    const bool shared = levels != nullptr;
+    // f(row, the scratch that lists it) for the part's rows, f(body) for its bodies.
+    const auto eachRow = [&](auto f) {
+      eachIndex(c, part.rows, shared, [&](size_t k, int thread) { f(k, shared ? parts_[static_cast<size_t>(thread)] : scratch); });
+    };
+    const auto eachBody = [&](auto f) { eachIndex(c, part.bodies, shared, [&](size_t i, int) { f(i); }); };
+    // f(scratch) for each scratch that lists the part's rows: on the threads if shared.
+    const auto eachList = [&](auto f) {
+      if (!shared) f(scratch);
+      else c.workers().forBlocks(parts_.size(), [&](size_t t, int) { f(parts_[t]); });
+    };
     ConstraintSet& cs = *c.constraints;
     const SolverSettings& st = *c.settings;
     const int n = c.n(), m = st.iterations;
@@ -110,15 +132,17 @@ class HavokActualStepper final : public Stepper {
     const size_t nb = c.bodies();
     // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
     // their bias back each sub-step are listed with what they need.
-    targets.clear();
-    speculative.clear();
-    forEach(part.rows, [&](size_t k) {
+    eachList([](PartScratch& s) {
+      s.targets.clear();
+      s.speculative.clear();
+    });
+    eachRow([&](size_t k, PartScratch& s) {
       Row& r = cs.rows[k];
       const bool exact = r.velocityTarget && st.motorUnscaled;  // solved with κ = τ = 1
       // A target row's bias is its base already (friction: 0); it moves only with J̌šʲ, which stays
       // zero when τ = 0.
-      if (r.velocityLevel && ratio != 0) targets.push_back({k, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
-      if (r.speculative) speculative.push_back({k, r.bias});
+      if (r.velocityLevel && ratio != 0) s.targets.push_back({k, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
+      if (r.speculative) s.speculative.push_back({k, r.bias});
       if (exact) return;
       r.bias *= ratio;
       if (r.normalRow < 0) {  // friction bounds are μ times the normal's λ̄ already
@@ -140,28 +164,32 @@ class HavokActualStepper final : public Stepper {
       }
       // J̌šʲ and J̌Σv̌ᵏ: both sums are zero at the first sub-step, and š stays zero when τ = 0.
       const bool shifted = j > 0 && ratio != 0;
-      if (shifted)
-        for (const Refreshed& f : targets) {
+      eachList([&](PartScratch& s) {
+        if (shifted)
+          for (const Refreshed& f : s.targets) {
+            Row& r = cs.rows[f.row];
+            r.bias = f.base + rowVelocity(r, sumV_.data(), sumW_.data());
+            if (inLanes_) *biasLane_[f.row - static_cast<size_t>(cs.contactFirstRow)] = r.bias;
+          }
+        for (const Refreshed& f : s.speculative) {
           Row& r = cs.rows[f.row];
-          r.bias = f.base + rowVelocity(r, sumV_.data(), sumW_.data());
+          const double shift = shifted ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;                // J̌šʲ
+          const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
+          r.bias = (beta < 0 ? beta : tau * beta) * invKappa + shift;
           if (inLanes_) *biasLane_[f.row - static_cast<size_t>(cs.contactFirstRow)] = r.bias;
         }
-      for (const Refreshed& f : speculative) {
-        Row& r = cs.rows[f.row];
-        const double shift = shifted ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;                // J̌šʲ
-        const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
-        r.bias = (beta < 0 ? beta : tau * beta) * invKappa + shift;
-        if (inLanes_) *biasLane_[f.row - static_cast<size_t>(cs.contactFirstRow)] = r.bias;
-      }
+      });
       for (int i = 0; i < m && part.units.count > 0; ++i) {
         if (stableOnly) predictStableRows(c);
         const bool last = j + 1 == n && i + 1 == m;  // the step reports its last sweep's residual
-        const double change = inLanes_ ? sweepLanes(c, last) : sweep(cs, part.units, c.v, c.w, SweepScales{}, last);
+        const double change = inLanes_ ? sweepLanes(c, last)
+                              : levels ? levels->sweep(cs, c.v, c.w, SweepScales{}, last, c.workers())
+                                       : sweep(cs, part.units, c.v, c.w, SweepScales{}, last);
         if (last) scratch.residual = std::max(scratch.residual, change);
       }
       endSubStepImpulses(c, part);
       // v̌ʲ = ŵʲ - šʲ, recorded for s4; then šʲ⁺¹ and ŵʲ⁺¹.
-      forEach(part.bodies, [&](size_t i) {
+      eachBody([&](size_t i) {
         const Vec3 v = c.v[i] - sumV_[i], w = c.w[i] - sumW_[i];
         c.subV[static_cast<size_t>(j) * nb + i] = v;
         c.subW[static_cast<size_t>(j) * nb + i] = w;
@@ -172,7 +200,7 @@ class HavokActualStepper final : public Stepper {
       });
       if (j + 1 < n) {
         const Vec3 ext = dt * c.model->gravity;
-        forEach(part.bodies, [&](size_t i) {
+        eachBody([&](size_t i) {
           if (c.mass[i].invMass == 0) return;  // static, or asleep (World::updateSleep)
           const Vec3& w = c.subW[static_cast<size_t>(j) * nb + i];
           c.v[i] = c.subV[static_cast<size_t>(j) * nb + i] + ext + sumV_[i];
@@ -185,9 +213,22 @@ class HavokActualStepper final : public Stepper {
       }
     }
     if (inLanes_) emptyLanes(c);
-    forEach(part.rows, [&](size_t q) {
+    eachRow([&](size_t q, PartScratch&) {
       Row& r = cs.rows[q];
       if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
+    });
+  }
+
+  // f(index, thread) for every index of r: shared out among the threads (the calling one 0), else
+  // all here as thread 0.
+  template <class F>
+  static void eachIndex(StepContext& c, const IndexRange& r, bool shared, F f) {
+    if (!shared) {
+      forEach(r, [&](size_t i) { f(i, 0); });
+      return;
+    }
+    c.workers().forRange(static_cast<size_t>(r.count), 1024, [&](size_t first, size_t last, int thread) {
+      for (size_t k = first; k < last; ++k) f(static_cast<size_t>(r[static_cast<int>(k)]), thread);
     });
   }
 
@@ -302,7 +343,12 @@ class HavokActualStepper final : public Stepper {
     const ConstraintSet::JointRef* ref;
     int offset, size;
   };
+  // Islands of fewer units go to one thread whole: on the 40-level pyramid's 3300 units, the
+  // threads' waits for each other already cost about what sharing the sweeps saves.
+  static constexpr int kLevelled = 2048;
   bool inLanes_ = false;
+  UnitLevels levels_;
+  std::vector<int> whole_;  // the islands the threads take whole
   std::vector<double*> biasLane_;  // per contact row (from contactFirstRow): its bias's lane
   std::vector<PartScratch> parts_;  // per thread
   std::vector<Vec3> sumV_, sumW_;  // 'SumVelocity' š, linear and angular

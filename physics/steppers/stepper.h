@@ -12,7 +12,9 @@
 #include "physics/state.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -208,6 +210,47 @@ __attribute__((always_inline)) inline void solveFrictionUnit(const FrictionCoupl
 double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k, bool measure = true);
 double sweep(ConstraintSet& cs, const IndexRange& units, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k,
              bool measure = true);
+
+// A part's solve units for a sweep shared out among threads, bit for bit the sequential sweep's.
+// Each unit waits for its predecessors: the last unit before it (in the part's order) on each of
+// the bodies it moves (storeMoving's test). Units that are not each other's predecessors through
+// a chain share no moving body and commute exactly; so every unit, solved once its predecessors
+// are, reads its bodies as the sequential sweep leaves them. The units are taken in order of
+// level (a unit one level after its later predecessor; stable within a level), so that units
+// side by side seldom wait for each other, in chunks claimed by the threads as they go; a unit
+// waits only for its own predecessors, not for a whole level. Contacts only: a manifold's
+// friction unit reads its normals' λ, which its block writes, and the two are ordered through a
+// body they both move.
+class UnitLevels {
+ public:
+  // False (and nothing to sweep) for a part with joints, or with a unit that moves no body.
+  bool build(const ConstraintSet& cs, const ConstraintPart& part, size_t bodies);
+  // sweep() over the part's units on the pool's threads: the same velocities and impulses. The
+  // change measured is the largest of each thread's, each kept as noteChange keeps it.
+  double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k, bool measure,
+               WorkerPool& pool);
+
+  // Units a thread claims at once; a chunk's done marks fill one cache line.
+  static constexpr int kChunk = 16;
+
+ private:
+  template <bool Measure>
+  void sweepChunks(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k, double& change);
+
+  std::vector<int> order_;  // the units by level, each level in the part's order
+  std::vector<int> before_;  // per place in order_: the places of its two predecessors (-1: none)
+  std::vector<int> level_, last_, place_;  // scratch: each unit's level; each body's last unit
+  struct alignas(64) Done {  // the sweep (epoch_) each unit of a chunk was last solved in
+    std::atomic<uint32_t> sweep[kChunk];
+  };
+  std::vector<Done> done_;
+  uint32_t epoch_ = 0;
+  std::atomic<size_t> next_{0};  // the next place to claim
+  struct alignas(64) Change {  // a thread's own cache line
+    double value;
+  };
+  std::vector<Change> change_;
+};
 
 // A contact block of 2 to 4 points (BlockData): the increment Δ of its impulses λ for b = cBias β -
 // cVel J̌v̌, with λ + Δ >= 0 and KΔ - b >= 0 complementary to it (sweep's block solve; A5's lanes
