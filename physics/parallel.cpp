@@ -98,10 +98,7 @@ void WorkerPool::run(size_t blocks, Fn fn, void* ctx) {
   // those that joined are waited for.
   const uint64_t s = state_.fetch_or(kClosed, std::memory_order_acq_rel);
   const int joined = static_cast<int>(s & kCount);
-  for (int spin = 0; left_.load(std::memory_order_acquire) < joined; ++spin) {
-    if (spin < kSpinRounds) spinPause();
-    else std::this_thread::yield();
-  }
+  spinUntil([&] { return left_.load(std::memory_order_acquire) >= joined; }, kSpinRounds);
   if (error_) {
     std::exception_ptr e;
     std::swap(e, error_);

@@ -27,6 +27,14 @@ constexpr size_t kBodyBlock = 1024;
 
 // One round of a spin-wait: x86's PAUSE (the core's other thread runs meanwhile), elsewhere a yield.
 void spinPause();
+// Waits until done(): `spins` rounds of spinPause, then yielding the core (on more threads than
+// cores, the thread waited for may need it).
+template <class F>
+void spinUntil(F done, int spins) {
+  for (int spin = 0; !done(); ++spin)
+    if (spin < spins) spinPause();
+    else std::this_thread::yield();
+}
 
 class WorkerPool {
  public:

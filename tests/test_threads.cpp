@@ -89,9 +89,9 @@ TEST(Threads, TrajectoriesAreBitIdenticalForAnyNumberOfThreads) {
 
 // An island too large to go to one thread whole: A5 shares its sweeps out unit by unit, each unit
 // solved once the units before it on its bodies are (UnitLevels), from 2048 units (the stepper's
-// kLevelled). The 40-level pyramid is one island of some 3300 units; under pyramid.json's A5 settings and under A5's defaults (τ > 0: the
-// rows' biases refreshed between sub-steps, on the threads too) it steps the same on one, two and
-// three threads.
+// kLevelled). The 40-level pyramid is one island of some 3300 units; under pyramid.json's A5
+// settings and under A5's defaults (τ > 0: the rows' biases refreshed between sub-steps, on the
+// threads too) it steps the same on one, two and three threads.
 TEST(Threads, AnIslandSweptUnitByUnitOnTheThreadsStepsTheSame) {
   const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/atlas/pyramid_40.json");
   for (const char* spec : {"a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", "a5"}) {

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <thread>
 
 namespace substep {
 
@@ -332,11 +331,7 @@ void UnitLevels::sweepChunks(ConstraintSet& cs, std::vector<Vec3>& v, std::vecto
       // A predecessor in this chunk was solved here, above; one before it, by whichever thread.
       for (size_t s = 0; s < 2; ++s) {
         const int q = before_[2 * p + s];
-        if (q < 0 || static_cast<size_t>(q) >= first) continue;
-        // Yielding after a while: on more threads than cores, the one it waits for may need this core.
-        for (int spin = 0; !solved(static_cast<size_t>(q)); ++spin)
-          if (spin < kSpins) spinPause();
-          else std::this_thread::yield();
+        if (q >= 0 && static_cast<size_t>(q) < first) spinUntil([&] { return solved(static_cast<size_t>(q)); }, kSpins);
       }
       solveUnit<Measure>(cs, cs.units[static_cast<size_t>(order_[p])], cs.rows.data(), v.data(), w.data(), k, change);
       done_[p / kChunk].sweep[p % kChunk].store(epoch_, std::memory_order_release);
