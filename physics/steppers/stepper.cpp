@@ -262,7 +262,12 @@ bool UnitLevels::build(const ConstraintSet& cs, const ConstraintPart& part, size
   level_.resize(count);
   before_.resize(2 * count);  // by index into `units` first, then by place
   int levels = 0;
+  // Each unit's first row is a cache line of its own, far from the last one's: asked for ahead
+  // (without, half of this loop's time on the 100-level pyramid went on waiting for them).
+  constexpr int kAhead = 16;
   for (int i = 0; i < units.count; ++i) {
+    if (i + kAhead < units.count)
+      __builtin_prefetch(&cs.rows[static_cast<size_t>(cs.units[static_cast<size_t>(units[i + kAhead])].first)].mA);
     const Row& r = cs.rows[static_cast<size_t>(cs.units[static_cast<size_t>(units[i])].first)];
     const bool movesA = r.mA != 0, movesB = r.mB != 0;  // storeMoving's test
     if (!movesA && !movesB) return false;
