@@ -1,7 +1,11 @@
 // substep-bench's printed ratios (app/bench/ratio_text.h): what a target's line shows must not
-// contradict its MET or NOT MET; and the speed-up --core-check says the cores allow.
+// contradict its MET or NOT MET; and the speed-up --core-check says the cores allow, and how
+// long its cores take to hand a cache line over.
 #include "app/bench/core_bound.h"
+#include "app/bench/core_handover.h"
 #include "app/bench/ratio_text.h"
+
+#include <sched.h>
 
 #include <gtest/gtest.h>
 
@@ -41,4 +45,32 @@ TEST(BenchCores, OnlyTheFastestNCoresCountAndNoneIsNaN) {
   EXPECT_DOUBLE_EQ(coreBound({10.0, 10.0}, 8), 5.0);        // more threads than cores timed
   EXPECT_TRUE(std::isnan(coreBound({}, 2)));
   EXPECT_TRUE(std::isnan(coreBound({10.0}, 0)));
+}
+
+// --core-check's hand-over (app/bench/core_handover.h) between the first two cores this process
+// may run on: a real round trip through the caches, some tens of nanoseconds at least (one that
+// did not wait for the other thread would take a few), and the caller's cores given back.
+TEST(BenchCores, TwoCoresHandACacheLineOverAndBack) {
+  cpu_set_t before;
+  ASSERT_EQ(sched_getaffinity(0, sizeof before, &before), 0);
+  std::vector<int> cores;
+  for (int c = 0; c < CPU_SETSIZE && cores.size() < 2; ++c)
+    if (CPU_ISSET(c, &before)) cores.push_back(c);
+  if (cores.size() < 2) {
+    GTEST_SKIP() << "one core only";
+  }
+  const double roundTrip = cacheLineRoundTrip(cores[0], cores[1], 500, 5);
+  EXPECT_GT(roundTrip, 10.0);
+  EXPECT_LT(roundTrip, 1e6);
+  cpu_set_t after;
+  ASSERT_EQ(sched_getaffinity(0, sizeof after, &after), 0);
+  EXPECT_TRUE(CPU_EQUAL(&before, &after));
+  EXPECT_TRUE(std::isnan(cacheLineRoundTrip(cores[0], cores[0])));  // one core cannot hand over to itself
+  // A core this process may not run on: no figure, and no wait for a thread that never starts.
+  int barred = -1;
+  for (int c = 0; c < CPU_SETSIZE && barred < 0; ++c)
+    if (!CPU_ISSET(c, &before)) barred = c;
+  if (barred >= 0) {
+    EXPECT_TRUE(std::isnan(cacheLineRoundTrip(cores[0], barred)));
+  }
 }

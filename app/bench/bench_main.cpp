@@ -12,7 +12,9 @@
 // (repeat 1 of every case, then repeat 2, ...) so slow drift of the machine spreads over all
 // cases. Single-threaded, unless --threads N adds each substep case on N threads (the speed-up,
 // and the end states' hashes equal); --core-check then also times it on one thread pinned to
-// each core, for the speed-up the cores' own speeds allow (app/bench/core_bound.h).
+// each core, for the speed-up the cores' own speeds allow (app/bench/core_bound.h), and how long
+// the first two cores take to hand a cache line over just before each N-thread run
+// (app/bench/core_handover.h).
 //
 // What the speed buys is measured the same way for both engines, with our own definitions:
 // displacement from the start (after 1 s and at the end), the fastest body, the joints' anchor
@@ -23,6 +25,7 @@
 #include "lab/chart.h"
 #include "lab/provenance.h"
 #include "app/bench/core_bound.h"
+#include "app/bench/core_handover.h"
 #include "app/bench/ratio_text.h"
 #include "app/common.h"
 #include "physics/constraints/joints.h"
@@ -250,6 +253,7 @@ struct Result {
   std::vector<int> cores;
   std::vector<std::vector<Run>> alone;
   std::vector<double> aloneMedian;
+  std::vector<double> roundTrip;  // per repeat, before the N-thread run: cores[0] to cores[1] and back [ns]
   std::string label() const { return threads == 1 ? c->label : std::string(c->label) + " x" + std::to_string(threads); }
 };
 
@@ -444,6 +448,22 @@ CoreAllowance coreAllowance(const Result& threaded, const Result& one) {
   return a;
 }
 
+// --core-check: how long the first two cores took to hand a cache line over, median and range of
+// the repeats; "" without the figure.
+std::string roundTripText(const Result& r) {
+  std::vector<double> t;
+  for (double x : r.roundTrip)
+    if (std::isfinite(x)) t.push_back(x);
+  if (t.empty() || r.cores.size() < 2) return "";
+  std::sort(t.begin(), t.end());
+  const size_t n = t.size();
+  const double median = n % 2 ? t[n / 2] : (t[n / 2 - 1] + t[n / 2]) / 2;
+  std::string out = "a cache line from core " + std::to_string(r.cores[0]) + " to core " + std::to_string(r.cores[1]) +
+                    " and back in " + fmt("%.0f", median) + " ns";
+  if (n > 1) out += " (" + fmt("%.0f", t.front()) + "-" + fmt("%.0f", t.back()) + ")";
+  return out;
+}
+
 // --threads N: each substep case on N threads against itself on one, run for run, and whether
 // the two ended in the same state to the last bit (the end states' hashes).
 void printThreads(const std::vector<Result>& results, std::ostream& out) {
@@ -473,10 +493,15 @@ void printThreads(const std::vector<Result>& results, std::ostream& out) {
     for (size_t k = 0; k < r.cores.size(); ++k)
       out << (k ? "," : "") << " core " << r.cores[k] << " " << fmt("%.3f", r.aloneMedian[k] * 1e3) << " ms";
     out << "; " << r.threads << " threads could take " << fmt("%.3f", a.bound * 1e3) << " ms at best, a speed-up of at most "
-        << fmt("%.2fx", a.speedUp) << "; reached " << fmt("%.0f", 100 * a.efficiency) << " % of that\n";
+        << fmt("%.2fx", a.speedUp) << "; reached " << fmt("%.0f", 100 * a.efficiency) << " % of that";
+    const std::string handOver = roundTripText(r);
+    if (!handOver.empty()) out << "; " << handOver;
+    out << "\n";
   }
   if (header && std::any_of(results.begin(), results.end(), [](const Result& r) { return !r.cores.empty(); }))
-    out << "  (at best: each core working in proportion to its own speed, nothing serial, nothing lost to sharing)\n";
+    out << "  (at best: each core working in proportion to its own speed, nothing serial, nothing lost to sharing;\n"
+           "  the hand-over, timed before each run, is some 100 ns on cores that share a cache and several times that\n"
+           "  across dies, where work handed between threads unit by unit gains little: docs/benchmarks.md)\n";
 }
 
 // Issue 20's targets, where their cases and scenes ran: the soft step and A5 (pyramid.json's
@@ -529,6 +554,8 @@ void printTargets(const std::vector<Result>& results, std::ostream& out) {
     out << ": " << (j.met ? "MET" : "NOT MET") << " (" << ratioText(j.ratio, t.bound) << ")";
     const CoreAllowance a = t.speedUp ? coreAllowance(*j.other, *j.one) : CoreAllowance{};
     if (a.valid()) out << "; the cores allowed at most " << fmt("%.2fx", a.speedUp);
+    const std::string handOver = t.speedUp ? roundTripText(*j.other) : "";
+    if (!handOver.empty()) out << "; " << handOver;
     out << "\n";
   }
 }
@@ -922,6 +949,7 @@ void timeRepeats(BenchPlan& plan, int steps, int repeat) {
   };
   for (int rep = 0; rep < repeat; ++rep) {
     for (Result& r : plan.results) {
+      if (r.cores.size() >= 2) r.roundTrip.push_back(cacheLineRoundTrip(r.cores[0], r.cores[1]));
       r.runs.push_back(timed(r, r.settings, r.label(), rep));
       // --core-check: right after the N-thread run, the case on one thread on each core in turn.
       SolverSettings one = r.settings;
@@ -1027,7 +1055,9 @@ nlohmann::json resultJson(const Result& r) {
       for (const Run& run : r.alone[k]) runs.push_back(run.total * 1e3);
       cores.push_back({{"core", r.cores[k]}, {"one_thread_ms", r.aloneMedian[k] * 1e3}, {"repeats_ms", runs}});
     }
-    j["core_check"] = {{"cores", cores}, {"best_ms", coreBound(r.aloneMedian, r.threads) * 1e3}};
+    nlohmann::json handOver = nlohmann::json::array();
+    for (double x : r.roundTrip) handOver.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
+    j["core_check"] = {{"cores", cores}, {"best_ms", coreBound(r.aloneMedian, r.threads) * 1e3}, {"round_trip_ns", handOver}};
   }
   nlohmann::json reps = nlohmann::json::array();
   for (const Run& run : r.runs) reps.push_back(runJson(run, *r.model));
@@ -1153,7 +1183,9 @@ int main(int argc, char** argv) {
   app.add_flag("--core-check", opt.coreCheck,
                "With --threads N: after each N-thread run, the same case on one thread pinned to each core in turn; "
                "prints each core's own step time and the speed-up those speeds allow at best (on a shared virtual "
-               "machine the cores may differ, and no code reaches N times one core)");
+               "machine the cores may differ, and no code reaches N times one core); and, before each N-thread run, "
+               "how long the first two cores take to hand a cache line over and back (cores far apart slow every "
+               "hand-over between threads)");
   app.add_flag("--quick", opt.quick, "Smoke test: 10 steps per run unless --steps is given");
   app.add_flag("--scaling", opt.scaling,
                "Scaling mode: piles of --sizes boxes, the log-log slope of step time against the count and the "
