@@ -24,6 +24,7 @@
 #include "lab/peers.h"
 #include "lab/chart.h"
 #include "lab/provenance.h"
+#include "app/bench/bench_stats.h"
 #include "app/bench/core_bound.h"
 #include "app/bench/core_handover.h"
 #include "app/bench/ratio_text.h"
@@ -455,12 +456,10 @@ std::string roundTripText(const Result& r) {
   for (double x : r.roundTrip)
     if (std::isfinite(x)) t.push_back(x);
   if (t.empty() || r.cores.size() < 2) return "";
-  std::sort(t.begin(), t.end());
-  const size_t n = t.size();
-  const double median = n % 2 ? t[n / 2] : (t[n / 2 - 1] + t[n / 2]) / 2;
   std::string out = "a cache line from core " + std::to_string(r.cores[0]) + " to core " + std::to_string(r.cores[1]) +
-                    " and back in " + fmt("%.0f", median) + " ns";
-  if (n > 1) out += " (" + fmt("%.0f", t.front()) + "-" + fmt("%.0f", t.back()) + ")";
+                    " and back in " + fmt("%.0f", app::median(t)) + " ns";
+  const auto [low, high] = std::minmax_element(t.begin(), t.end());
+  if (t.size() > 1) out += " (" + fmt("%.0f", *low) + "-" + fmt("%.0f", *high) + ")";
   return out;
 }
 

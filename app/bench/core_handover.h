@@ -7,10 +7,11 @@
 // this machine: two placements").
 #pragma once
 
+#include "app/bench/bench_stats.h"
+
 #include <pthread.h>
 #include <sched.h>
 
-#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -67,9 +68,7 @@ inline double cacheLineRoundTrip(int a, int b, int rounds = 2000, int batches = 
   stop.store(true);
   other.join();
   pthread_setaffinity_np(pthread_self(), sizeof before, &before);
-  if (batch.empty()) return NAN;
-  std::nth_element(batch.begin(), batch.begin() + static_cast<long>(batch.size() / 2), batch.end());
-  return batch[batch.size() / 2];
+  return app::median(batch);  // NaN without a batch
 }
 
 }  // namespace substep::bench

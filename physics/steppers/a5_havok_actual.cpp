@@ -76,12 +76,11 @@ class HavokActualStepper final : public Stepper {
       }
       // Runs of neighbouring islands a thread, not one: islands next to each other on two
       // threads share the cache lines of their boundary bodies (velocities, sums, sub-steps).
+      // (One range or none runs here, on the calling thread: forBlocks.)
       const size_t grain = std::max<size_t>(1, whole_.size() / (16 * static_cast<size_t>(pool.threads())));
-      if (whole_.size() == 1) solvePart(c, cs.island(whole_[0]), stableOnly, parts_[0]);
-      else if (whole_.size() > 1)
-        pool.forRange(whole_.size(), grain, [&](size_t first, size_t last, int thread) {
-          for (size_t k = first; k < last; ++k) solvePart(c, cs.island(whole_[k]), stableOnly, parts_[static_cast<size_t>(thread)]);
-        });
+      pool.forRange(whole_.size(), grain, [&](size_t first, size_t last, int thread) {
+        for (size_t k = first; k < last; ++k) solvePart(c, cs.island(whole_[k]), stableOnly, parts_[static_cast<size_t>(thread)]);
+      });
     }
     for (const PartScratch& s : parts_) c.stats.residual = std::max(c.stats.residual, s.residual);
     c.stats.iterations = n * st.iterations;
