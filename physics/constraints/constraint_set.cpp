@@ -86,7 +86,11 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   }
   // Every row of the step, taken in order by `take`. The vector keeps last step's rows and each
   // is reset field by field, without a zero fill of the whole row (docs/benchmarks.md).
-  deferred_ = deferAsked_ && model.joints.empty() && settings.warmStart && !bounces;
+  // Deferred (no contact row stored): the soft step's lanes formulate them, or A5's lane groups
+  // hold them, where nothing but the sweeps reads a contact's row (no joints, no restitution,
+  // warm started; A5's groups: contact blocks and no split impulses).
+  const bool a5Groups = laneGroupsAsked_ && lanesAsked_ && applyScale > 0 && contactBlocks_ && !settings.splitImpulse;
+  deferred_ = (deferAsked_ || a5Groups) && model.joints.empty() && settings.warmStart && !bounces;
   resizeRewritten(rows, jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm), workers());
   size_t next = 0;
   auto take = [&](int n) {
@@ -150,16 +154,17 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   applyScale_ = applyScale;
   // Stored rows are formulated eight manifolds at a time in SIMD lanes (contact_lanes.cpp), the
   // same numbers as formulateManifold's; with contact blocks, their K and K⁻¹ too.
-  const bool inLanes = inLanes_ = !deferred_ && lanesAsked_ && applyScale > 0 && nm > 0;
+  const bool groupsOnly = deferred_ && !deferAsked_;  // A5's groups hold the contact rows
+  const bool inLanes = inLanes_ = (!deferred_ || groupsOnly) && lanesAsked_ && applyScale > 0 && nm > 0;
   blocksInLanes_ = inLanes && contactBlocks_;
   if (blocksInLanes_) resizeRewritten(laneBlocks_, nm, workers());
-  // A5's lanes: the definitions first, then the groups in the runs' order. Only while the groups
-  // fit in the core's L2 cache (about 1 KB a manifold; the 20-level pyramid's 400 manifolds do,
-  // the 40-level one's 1640 do not): the sweeps stream them eight times a step, and formulated in
-  // the runs' order the rows are written out of order; beyond L2 both cost more than the lanes
-  // save (docs/benchmarks.md).
+  // A5's lanes: the definitions first, then the groups in the runs' order. With rows stored
+  // beside them, only while the groups fit in the core's L2 cache (about 1 KB a manifold; the
+  // 20-level pyramid's 400 manifolds do, the 40-level one's 1640 do not): formulated in the runs'
+  // order the rows are written out of order, and beyond L2 that cost more than the lanes save
+  // (docs/benchmarks.md).
   const bool grouped = inLanes && laneGroupsAsked_ && settings.warmStart && contactBlocks_ && model.joints.empty() &&
-                       !LaneRuns::outgrowsL2(nm * sizeof(lanes::RigidGroup) / lanes::kLanes);
+                       (groupsOnly || !LaneRuns::outgrowsL2(nm * sizeof(lanes::RigidGroup) / lanes::kLanes));
   if (!grouped) {
     laneGroups_.clear();
     runCount_ = 0;
@@ -254,10 +259,16 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       if (blocksInLanes_) d = laneBlocks_[k];
       d.lastMask = manifolds[k].blockMask;
     }
+  // A lane's block: its unit's, or with no unit (the groups hold the rows) its manifold's own.
   for (lanes::RigidGroup& g : laneGroups_)
     for (int l = 0; l < g.count; ++l) {
-      const FrictionDef& f = frictions[static_cast<size_t>(g.manifold[l])];
+      const size_t k = static_cast<size_t>(g.manifold[l]);
+      const FrictionDef& f = frictions[k];
       if (f.unit >= 0) g.block[l] = units[static_cast<size_t>(f.unit)].block;
+      if (groupsOnly && blocksInLanes_ && f.normalCount > 1) {
+        laneBlocks_[k].lastMask = manifolds[k].blockMask;
+        g.block[l] = static_cast<int>(k);
+      }
     }
   // A5 solves island by island; the soft step, uncoloured, shares the islands out among its
   // threads (coloured, the colours share the manifolds out).
@@ -265,7 +276,8 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   const bool softLanes = settings.lanes && settings.contactOrder == ContactOrder::Manifold;
   const bool softIslands =
       settings.algorithm == Algorithm::Soft && !softLanes && colourStart.empty() && pool_ && pool_->threads() > 1;
-  findIslands((settings.islands && settings.algorithm == Algorithm::A5) || softIslands);
+  // A5 in lanes sweeps every group at once and reads no island either.
+  findIslands((settings.islands && settings.algorithm == Algorithm::A5 && !groupsOnly) || softIslands);
 }
 
 void ConstraintSet::formulateManifold(size_t mk, Row* r, FrictionCoupling& coupling) const {
@@ -713,6 +725,7 @@ void ConstraintSet::storeImpulses(std::vector<Manifold>& manifolds) {
         for (int p = 0; p < m.count; ++p) m.points[p].lambda = i.normal[p];
         m.frictionImpulse = i.tangentInB;
         m.twistImpulse = i.twist;
+        if (blocksInLanes_ && m.count > 1) m.blockMask = laneBlocks_[f].lastMask;  // A5's groups
         continue;
       }
       const Row* normals = &rows[static_cast<size_t>(manifoldRow_[f])];

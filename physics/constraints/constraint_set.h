@@ -78,7 +78,8 @@ class ConstraintSet {
   // grants it when nothing else reads a contact's row (no joints, no restitution, warm started).
   // Granted, `rows` holds no contact row (frictions' and contacts' row indices are where build()
   // would have put them), and the stepper leaves the step's impulses in `impulses` for
-  // storeImpulses. The same numbers either way (docs/benchmarks.md).
+  // storeImpulses. The same numbers either way (docs/benchmarks.md). A5's lane groups, granted
+  // without restitution or split impulses, hold their contact rows the same way (askLaneGroups).
   void askDeferredContactRows(bool ask) { deferAsked_ = ask; }
   bool contactRowsDeferred() const { return deferred_; }
   // Manifold k's rows as build() writes them to rows[frictions[k].firstNormal ..] (its points'
@@ -93,9 +94,20 @@ class ConstraintSet {
   // A5's sweep in lanes: asked before build(), which grants it when the rows are formulated in
   // lanes, warm, with contact blocks and no joints. Granted, the groups are laid out in the runs
   // of the step's order (LaneRuns) and kept, rows and all, for the stepper to sweep in place
-  // (laneGroups(); their block indices numbered); else there are none.
+  // (laneGroups(); their block indices numbered); else there are none. Without restitution and
+  // split impulses, which read the rows after the sweeps, the groups are the contact rows' only
+  // copy (contactRowsDeferred(): no contact row or unit stored, each manifold's block in
+  // laneBlock(k), the impulses left in `impulses`); else the rows are stored beside them.
   void askLaneGroups(bool ask) { laneGroupsAsked_ = ask; }
   std::vector<lanes::RigidGroup>& laneGroups() { return laneGroups_; }
+  // Row q of lane l of a lane group (its manifold's normal rows, then its three friction rows) as
+  // build() stores it.
+  void laneRow(const lanes::RigidGroup& g, int l, int q, Row& row) const;
+  // The contact block a lane group's block index names: in `blocks`, or with the rows deferred,
+  // manifold `block`'s own.
+  BlockData& laneBlock(int block) {
+    return deferred_ ? laneBlocks_[static_cast<size_t>(block)] : blocks[static_cast<size_t>(block)];
+  }
   int laneRunCount() const { return runCount_; }
   // Asks the cache for manifold k's rows, or deferred for what formulateManifold(k) reads (a caller
   // taking the manifolds out of their order does, a few ahead, when they outgrow the cache); and

@@ -63,8 +63,9 @@ double contactGap(const ContactDef& c, const Frame& A, const Frame& B);
 // A normal row apart at the step's start (C > 0, β < 0) is a speculative point (closing the gap at
 // full speed); without speculative points (the report has none) it stays in the manifold but holds
 // nothing until it touches (hi = λ = 0).
+inline bool apartAndSpeculative(double bias, bool speculative) { return bias < 0 && speculative; }
 inline void markApart(Row& row, bool speculative) {
-  row.speculative = row.bias < 0 && speculative;
+  row.speculative = apartAndSpeculative(row.bias, speculative);
   if (row.bias < 0 && !speculative) row.hi = row.lambda = 0;
 }
 

@@ -79,25 +79,10 @@ void ConstraintSet::formulateGroup(const int* manifolds, int count, const lanes:
   for (int l = 0; l < count; ++l) {
     const size_t k = static_cast<size_t>(manifolds[l]);
     const FrictionDef& fd = frictions[k];
-    Row* r = rows.data() + manifoldRow_[k];
-    for (int q = 0; q < fd.normalCount; ++q) {
-      Row& row = r[q];
-      copyRow(g, g.normal[q], l, row);
-      row.lo = 0;
-      row.hi = kInfinity;
-      markApart(row, speculative_);
+    if (!deferred_) {
+      for (int q = 0; q < fd.normalCount + 3; ++q) laneRow(g, l, q, rows[static_cast<size_t>(manifoldRow_[k] + q)]);
+      couplings[k] = {g.g10.x[l], g.g20.x[l], g.g21.x[l]};
     }
-    Row* fr = r + fd.normalCount;
-    for (int i = 0; i < 3; ++i) {
-      Row& row = fr[i];
-      copyRow(g, g.friction[i], l, row);
-      row.velocityLevel = exempt_;
-      row.lo = -g.mu[i].x[l];
-      row.hi = g.mu[i].x[l];
-      row.normalRow = fd.firstNormal;
-      row.normalCount = fd.normalCount;
-    }
-    couplings[k] = {g.g10.x[l], g.g20.x[l], g.g21.x[l]};
     if (!blocksInLanes_ || fd.normalCount < 2) continue;
     BlockData& d = laneBlocks_[k];
     for (int col = 0; col < lanes::kMaxNormals; ++col)
@@ -106,6 +91,24 @@ void ConstraintSet::formulateGroup(const int* manifolds, int count, const lanes:
         d.invK(row, col) = g.invK[row][col].x[l];
       }
   }
+}
+
+void ConstraintSet::laneRow(const lanes::RigidGroup& g, int l, int q, Row& row) const {
+  const FrictionDef& fd = frictions[static_cast<size_t>(g.manifold[l])];
+  if (q < fd.normalCount) {
+    copyRow(g, g.normal[q], l, row);
+    row.lo = 0;
+    row.hi = kInfinity;
+    markApart(row, speculative_);
+    return;
+  }
+  const int i = q - fd.normalCount;
+  copyRow(g, g.friction[i], l, row);
+  row.velocityLevel = exempt_;
+  row.lo = -g.mu[i].x[l];
+  row.hi = g.mu[i].x[l];
+  row.normalRow = fd.firstNormal;
+  row.normalCount = fd.normalCount;
 }
 
 void ConstraintSet::formulateManifoldsInLanes(size_t first, size_t last) {

@@ -19,7 +19,9 @@
 // report's IV.4.1: only the 'stable' rows', recomputed while micro-iterating at the coordinates
 // the running velocity predicts for the sub-step's end (JacobianRefresh::Stable).
 #include "physics/constraints/joints.h"
+#include "physics/step_arrays.h"
 #include "physics/steppers/soft_lanes.h"
+#include "physics/steppers/soft_lanes_fill.h"
 #include "physics/steppers/stepper.h"
 
 namespace substep {
@@ -36,7 +38,7 @@ class HavokActualStepper final : public Stepper {
     const size_t nb = c.bodies();
     const bool stableOnly = st.jacobians == JacobianRefresh::Stable && !cs.joints.empty();
     c.stats = StepStats{};
-    c.stats.rows = static_cast<int>(cs.rows.size());
+    c.stats.rows = cs.rowCount();
     c.rowsHeld = cs.joints.empty();  // only joint rows are re-formulated between sub-steps
 
     splitPositionErrors(c);
@@ -60,6 +62,7 @@ class HavokActualStepper final : public Stepper {
     // In lanes (SolverSettings::lanes), on one thread: warm, with the contact rows held (no joints)
     // and a manifold's normals a block (or one single row), the whole step at once, its manifolds
     // eight at a time in the runs of the step's order; the same numbers as island by island.
+    // Without restitution and split impulses no contact row is stored: the groups are the rows.
     inLanes_ = !cs.laneGroups().empty();  // asked for by asksLaneGroups, granted by build()
     if (stableOnly || inLanes_) {
       solvePart(c, cs.whole(nb), stableOnly, parts_[0]);
@@ -91,15 +94,16 @@ class HavokActualStepper final : public Stepper {
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
   // Its lane sweep runs on one thread; build() grants the groups where the rows allow (warm,
-  // contact blocks, no joints, within L2).
+  // contact blocks, no joints; within L2 while the rows are stored beside them).
   bool asksLaneGroups(const SolverSettings& st, int threads) const override { return st.lanes && threads == 1; }
 
  private:
   // Sub-steps 1..n of one part of the step (an island, or all of it).
   // What solving a part needs of its own: the rows it refreshes, its last sweep's largest change.
   struct Refreshed {
-    size_t row;
-    double base;  // targets: c·target; speculative rows: β¹
+    Row* row;      // stored, or in lanes with the rows deferred a copy (laneRows_)
+    double* lane;  // in lanes: its bias's lane, refreshed with it
+    double base;   // targets: c·target; speculative rows: β¹
   };
   struct PartScratch {
     std::vector<Refreshed> targets, speculative;
@@ -135,13 +139,12 @@ class HavokActualStepper final : public Stepper {
       s.targets.clear();
       s.speculative.clear();
     });
+    if (inLanes_) prepareLanes(c, ratio, invKappa, scratch);
+    const size_t laneBase = static_cast<size_t>(cs.contactFirstRow);
     eachRow([&](size_t k, PartScratch& s) {
       Row& r = cs.rows[k];
       const bool exact = r.velocityTarget && st.motorUnscaled;  // solved with κ = τ = 1
-      // A target row's bias is its base already (friction: 0); it moves only with J̌šʲ, which stays
-      // zero when τ = 0.
-      if (r.velocityLevel && ratio != 0) s.targets.push_back({k, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
-      if (r.speculative) s.speculative.push_back({k, r.bias});
+      listRefreshed(r, inLanes_ && k >= laneBase ? biasLane_[k - laneBase] : nullptr, exact, ratio, s);
       if (exact) return;
       r.bias *= ratio;
       if (r.normalRow < 0) {  // friction bounds are μ times the normal's λ̄ already
@@ -150,7 +153,6 @@ class HavokActualStepper final : public Stepper {
       }
       r.lambda *= invKappa;  // warm-started impulses, as λ̄
     });
-    if (inLanes_) prepareLanes(c, ratio, invKappa);
     for (int j = 0; j < n; ++j) {
       if (inLanes_ && j == 0) {
         // Last step's λ from the lanes (which hold the rows' λ̄), row by row as applyRowImpulses;
@@ -166,19 +168,19 @@ class HavokActualStepper final : public Stepper {
       eachList([&](PartScratch& s) {
         if (shifted)
           for (const Refreshed& f : s.targets) {
-            Row& r = cs.rows[f.row];
+            Row& r = *f.row;
             r.bias = f.base + rowVelocity(r, sumV_.data(), sumW_.data());
-            if (inLanes_) *biasLane_[f.row - static_cast<size_t>(cs.contactFirstRow)] = r.bias;
+            if (f.lane) *f.lane = r.bias;
           }
         for (const Refreshed& f : s.speculative) {
-          Row& r = cs.rows[f.row];
+          Row& r = *f.row;
           const double shift = shifted ? rowVelocity(r, sumV_.data(), sumW_.data()) : 0.0;                // J̌šʲ
           const double beta = j > 0 ? f.base - rowVelocity(r, rawV_.data(), rawW_.data()) : f.base;  // βʲ by the update rule
           r.bias = (beta < 0 ? beta : tau * beta) * invKappa + shift;
-          if (inLanes_) *biasLane_[f.row - static_cast<size_t>(cs.contactFirstRow)] = r.bias;
+          if (f.lane) *f.lane = r.bias;
         }
       });
-      for (int i = 0; i < m && part.units.count > 0; ++i) {
+      for (int i = 0; i < m && (inLanes_ || part.units.count > 0); ++i) {
         if (stableOnly) predictStableRows(c);
         const bool last = j + 1 == n && i + 1 == m;  // the step reports its last sweep's residual
         const double change = inLanes_ ? sweepLanes(c, last)
@@ -211,7 +213,7 @@ class HavokActualStepper final : public Stepper {
         }
       }
     }
-    if (inLanes_) emptyLanes(c);
+    if (inLanes_) emptyLanes(c, kappa);
     eachRow([&](size_t q, PartScratch&) {
       Row& r = cs.rows[q];
       if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
@@ -231,16 +233,27 @@ class HavokActualStepper final : public Stepper {
     });
   }
 
+  // The rows whose bias is refreshed each sub-step, listed with what the refresh needs: a target
+  // row (velocity level) its base c·target (friction: 0), which is its bias already and moves only
+  // with J̌šʲ (zero while τ = 0); a speculative row β¹.
+  static void listRefreshed(Row& r, double* lane, bool exact, double ratio, PartScratch& s) {
+    if (r.velocityLevel && ratio != 0) s.targets.push_back({&r, lane, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
+    if (r.speculative) s.speculative.push_back({&r, lane, r.bias});
+  }
+
   // The lanes ConstraintSet::build formulated (laneGroups) as the prologue leaves the rows: with
   // split impulses the normals' penetration split off (splitPositionErrors), then β̄ = (τ/κ)β and
-  // λ̄ = λ/κ, the same operations; every contact row's bias lane noted, for the refreshes between
-  // sub-steps.
-  void prepareLanes(StepContext& c, double ratio, double invKappa) {
+  // λ̄ = λ/κ, the same operations. The rows refreshed between sub-steps get their bias's lane:
+  // stored rows through biasLane_ (per contact row), deferred ones listed here from the lanes
+  // before the scaling, as the stored rows' pass lists them (a copy of each, laneRows_, for J̌).
+  void prepareLanes(StepContext& c, double ratio, double invKappa, PartScratch& s) {
     ConstraintSet& cs = *c.constraints;
     std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
-    biasLane_.assign(cs.rows.size() - static_cast<size_t>(cs.contactFirstRow), nullptr);
     c.stats.laneRuns = cs.laneRunCount();
     c.stats.laneGroups = static_cast<int>(groups.size());
+    const bool deferred = cs.contactRowsDeferred();
+    if (deferred) listLaneRows(c, ratio, s);
+    else biasLane_.assign(cs.rows.size() - static_cast<size_t>(cs.contactFirstRow), nullptr);
     const size_t rowBase = static_cast<size_t>(cs.contactFirstRow);
     for (lanes::RigidGroup& g : groups) {
       if (c.settings->splitImpulse)
@@ -254,7 +267,29 @@ class HavokActualStepper final : public Stepper {
       };
       for (lanes::RigidRowLanes& r : g.normal) scale(r);
       for (lanes::RigidRowLanes& r : g.friction) scale(r);
-      eachLaneRow(cs, g, [&](size_t row, lanes::RigidRowLanes& r, int l) { biasLane_[row - rowBase] = &r.bias.x[l]; });
+      if (!deferred)
+        eachLaneRow(cs, g, [&](size_t row, lanes::RigidRowLanes& r, int l) { biasLane_[row - rowBase] = &r.bias.x[l]; });
+    }
+  }
+
+  // Deferred: the lanes' speculative normals and (τ ≠ 0, friction exempt) friction rows, each
+  // copied out as build() would have stored it and listed with its bias's lane.
+  void listLaneRows(StepContext& c, double ratio, PartScratch& s) {
+    ConstraintSet& cs = *c.constraints;
+    const bool speculative = cs.speculativeContacts();
+    const bool targets = ratio != 0 && c.settings->frictionExempt;
+    laneRefs_.clear();
+    for (lanes::RigidGroup& g : cs.laneGroups())
+      for (int l = 0; l < g.count; ++l) {
+        for (int q = 0; q < g.points[l]; ++q)
+          if (apartAndSpeculative(g.normal[q].bias.x[l], speculative)) laneRefs_.push_back({&g, l, q, &g.normal[q].bias.x[l]});
+        for (int i = 0; i < 3 && targets; ++i) laneRefs_.push_back({&g, l, g.points[l] + i, &g.friction[i].bias.x[l]});
+      }
+    laneRows_.resize(laneRefs_.size());  // before any is listed: the lists point into it
+    for (size_t k = 0; k < laneRefs_.size(); ++k) {
+      const LaneRef& ref = laneRefs_[k];
+      cs.laneRow(*ref.g, ref.l, ref.q, laneRows_[k]);
+      listRefreshed(laneRows_[k], ref.bias, false, ratio, s);
     }
   }
 
@@ -268,14 +303,29 @@ class HavokActualStepper final : public Stepper {
     }
   }
 
-  // The lanes' λ and pushed back to the rows, as the sweeps left them.
-  void emptyLanes(StepContext& c) {
+  // The lanes' λ and pushed back to the rows, as the sweeps left them; with the rows deferred,
+  // each manifold's impulses (λ = κλ̄, as the rows keep them) for storeImpulses.
+  void emptyLanes(StepContext& c, double kappa) {
     ConstraintSet& cs = *c.constraints;
-    for (lanes::RigidGroup& g : cs.laneGroups())
-      eachLaneRow(cs, g, [&](size_t row, const lanes::RigidRowLanes& r, int l) {
-        cs.rows[row].lambda = r.lambda.x[l];
-        cs.rows[row].pushed = r.pushed.x[l] != 0;
-      });
+    if (!cs.contactRowsDeferred()) {
+      for (lanes::RigidGroup& g : cs.laneGroups())
+        eachLaneRow(cs, g, [&](size_t row, const lanes::RigidRowLanes& r, int l) {
+          cs.rows[row].lambda = r.lambda.x[l];
+          cs.rows[row].pushed = r.pushed.x[l] != 0;
+        });
+      return;
+    }
+    resizeRewritten(cs.impulses, cs.frictions.size(), c.workers());
+    for (const lanes::RigidGroup& g : cs.laneGroups())
+      for (int l = 0; l < g.count; ++l) {
+        const FrictionDef& fd = cs.frictions[static_cast<size_t>(g.manifold[l])];
+        ConstraintSet::ManifoldImpulses& to = cs.impulses[static_cast<size_t>(g.manifold[l])];
+        for (int q = 0; q < g.points[l]; ++q) to.normal[q] = g.normal[q].lambda.x[l] * kappa;
+        const lanes::RigidRowLanes* f = g.friction;
+        to.tangentInB = frictionImpulseInB(fd.qB, f[0].lambda.x[l] * kappa, lanes::laneVector(f[0].lin, l),
+                                           f[1].lambda.x[l] * kappa, lanes::laneVector(f[1].lin, l));
+        to.twist = f[2].lambda.x[l] * kappa;
+      }
   }
 
   // One sweep in lanes, in the units' order: every manifold's friction, then every block (split
@@ -293,7 +343,7 @@ class HavokActualStepper final : public Stepper {
   }
   static void searchBlock(void* set, int block, int points, const double* lambda, const double* b, double* delta) {
     ConstraintSet& cs = *static_cast<ConstraintSet*>(set);
-    solveContactBlock(cs.blocks[static_cast<size_t>(block)], points, lambda, b, delta);
+    solveContactBlock(cs.laneBlock(block), points, lambda, b, delta);
   }
 
   // The 'stable' parts of every joint (joints.h: unbounded rows), for JacobianRefresh::Stable.
@@ -348,7 +398,14 @@ class HavokActualStepper final : public Stepper {
   bool inLanes_ = false;
   UnitLevels levels_;
   std::vector<int> whole_;  // the islands the threads take whole
-  std::vector<double*> biasLane_;  // per contact row (from contactFirstRow): its bias's lane
+  std::vector<double*> biasLane_;  // per stored contact row (from contactFirstRow): its bias's lane
+  struct LaneRef {
+    lanes::RigidGroup* g;
+    int l, q;  // lane, row (laneRow's q)
+    double* bias;
+  };
+  std::vector<LaneRef> laneRefs_;  // deferred: the lanes' rows refreshed between sub-steps ...
+  std::vector<Row> laneRows_;      // ... and a copy of each (its J̌ for the refresh)
   std::vector<PartScratch> parts_;  // per thread
   std::vector<Vec3> sumV_, sumW_;  // 'SumVelocity' š, linear and angular
   std::vector<Vec3> rawV_, rawW_;  // Σ_{k<j} v̌ᵏ unscaled: speculative rows' βʲ

@@ -125,7 +125,8 @@ struct Pass {
 // and its contact block (or, with one point, its single normal row) as sweep() solves them
 // (stepper.cpp: solveUnit with A5's SweepScales, all 1; M̌⁻¹J̌ᵀ scaled by κ and stored), each lane
 // operation for operation in the same order: the same numbers. λ and pushed go back to the rows
-// when the step's sweeps are done.
+// when the step's sweeps are done; or, where nothing else reads them (no restitution, no split
+// impulses), no contact row is stored and the impulses go to ConstraintSet::impulses.
 // M̌⁻¹J̌ᵀ is not stored: the group's scaled inverse masses times J̌ (finishRow's products).
 struct RigidRowLanes {
   Doubles lin[3], angA[3], angB[3];  // J̌

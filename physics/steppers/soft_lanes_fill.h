@@ -16,5 +16,7 @@ void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in)
 void putMasses(Group& g, int l, const BodyMass& A, const BodyMass& B, bool used);
 // The formulation constants of cs's last build, for sub-step hSub.
 Formulation formulation(const ConstraintSet& cs, double hSub);
+// Lane l of a vector's three lanes (a row's lin, angA or angB).
+inline Vec3 laneVector(const Doubles* v, int l) { return Vec3(v[0].x[l], v[1].x[l], v[2].x[l]); }
 
 }  // namespace substep::lanes

@@ -410,12 +410,11 @@ class SoftStepper final : public Stepper {
       ConstraintSet::ManifoldImpulses& to = cs.impulses[static_cast<size_t>(g.manifold[l])];
       for (int q = 0; q < fd.normalCount; ++q) to.normal[q] = g.normal[q].lambda.x[l];
       const lanes::FrictionLanes* f = g.friction;
-      to.tangentInB = frictionImpulseInB(fd.qB, f[0].lambda.x[l], laneVector(f[0].lin, l), f[1].lambda.x[l],
-                                         laneVector(f[1].lin, l));
+      to.tangentInB = frictionImpulseInB(fd.qB, f[0].lambda.x[l], lanes::laneVector(f[0].lin, l), f[1].lambda.x[l],
+                                         lanes::laneVector(f[1].lin, l));
       to.twist = f[2].lambda.x[l];
     });
   }
-  static Vec3 laneVector(const lanes::Doubles* v, int l) { return Vec3(v[0].x[l], v[1].x[l], v[2].x[l]); }
 
   // The manifolds' part of a sweep in the lanes.
   void sweepLanes(StepContext& c, const Pass& p, bool measure) {
