@@ -35,6 +35,8 @@ void spinUntil(F done, int spins) {
     if (spin < spins) spinPause();
     else std::this_thread::yield();
 }
+// Pause rounds (a few µs) a sweep's thread waits for another's part before yielding.
+constexpr int kSweepWaitSpins = 256;
 
 class WorkerPool {
  public:

@@ -276,8 +276,9 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   const bool softLanes = settings.lanes && settings.contactOrder == ContactOrder::Manifold;
   const bool softIslands =
       settings.algorithm == Algorithm::Soft && !softLanes && colourStart.empty() && pool_ && pool_->threads() > 1;
-  // A5 in lanes sweeps every group at once and reads no island either.
-  findIslands((settings.islands && settings.algorithm == Algorithm::A5 && !groupsOnly) || softIslands);
+  // A5 in lanes sweeps every group at once; on more threads its stepper reads the islands' sizes.
+  const bool a5Islands = settings.islands && settings.algorithm == Algorithm::A5 && !(groupsOnly && workers().threads() == 1);
+  findIslands(a5Islands || softIslands);
 }
 
 void ConstraintSet::formulateManifold(size_t mk, Row* r, FrictionCoupling& coupling) const {
@@ -469,6 +470,8 @@ void ConstraintSet::findIslands(bool split) {
     const FrictionDef& f = frictions[static_cast<size_t>(k)];
     islandManifolds_[static_cast<size_t>(cursor_[static_cast<size_t>(of(f.a, f.b))].manifolds++)] = k;
   }
+  // With the contact rows deferred (and no joints) there is no unit or row to list.
+  if (deferred_) return;
   // Units and rows island by island, each in the step's order: joints' first, then the
   // manifolds' friction and normal units in the order build() put them; rows are joints' then
   // manifolds' (normal rows, then friction), as build() laid them out.

@@ -28,6 +28,71 @@ namespace substep {
 
 namespace {
 
+// A5's lane groups on several threads: a pass over the groups (a sweep's phase, the warm start)
+// as one job in which the threads claim the groups one at a time in order and each solves its
+// group once the groups before it on its moving bodies (its predecessors) are done in this pass.
+// Every body's rows are then solved in the serial order: the same numbers on any number of
+// threads. A group waits only for the few it follows (a pyramid's runs overlap: a run's first
+// groups can go while the run before ends), not for a whole run.
+class LaneSchedule {
+ public:
+  // The predecessors of each of the groups, in their order.
+  void build(const std::vector<lanes::RigidGroup>& groups, size_t bodies) {
+    last_.assign(bodies, -1);
+    start_.assign(1, 0);
+    before_.clear();
+    for (size_t gi = 0; gi < groups.size(); ++gi) {
+      const lanes::RigidGroup& g = groups[gi];
+      const size_t first = before_.size();
+      const auto follow = [&](int body) {
+        int& last = last_[static_cast<size_t>(body)];
+        if (last >= 0 && std::find(before_.begin() + static_cast<ptrdiff_t>(first), before_.end(), last) == before_.end())
+          before_.push_back(last);
+        last = static_cast<int>(gi);
+      };
+      for (int l = 0; l < g.count; ++l) {
+        if (g.mA.x[l] != 0) follow(g.a[l]);  // zero: a body that does not move (the kernel never writes it)
+        if (g.mB.x[l] != 0) follow(g.b[l]);
+      }
+      start_.push_back(static_cast<int>(before_.size()));
+    }
+    if (done_.size() < groups.size()) {
+      done_ = std::vector<std::atomic<uint32_t>>(groups.size());
+      epoch_ = 0;
+    }
+  }
+  // f(group, group + 1, thread) for every group of the last build(), on every thread of the pool.
+  template <class F>
+  void run(WorkerPool& pool, F& f) {
+    const uint32_t epoch = ++epoch_;
+    if (epoch == 0) {  // wrapped: no flag may hold the new pass's number already
+      for (std::atomic<uint32_t>& d : done_) d.store(0, std::memory_order_relaxed);
+      epoch_ = 1;
+      run(pool, f);
+      return;
+    }
+    const size_t count = start_.size() - 1;
+    next_.store(0, std::memory_order_relaxed);
+    pool.forBlocks(static_cast<size_t>(pool.threads()), [&](size_t, int thread) {
+      for (size_t g; (g = next_.fetch_add(1, std::memory_order_relaxed)) < count;) {
+        for (int p = start_[g]; p < start_[g + 1]; ++p) {
+          const std::atomic<uint32_t>& d = done_[static_cast<size_t>(before_[static_cast<size_t>(p)])];
+          spinUntil([&] { return d.load(std::memory_order_acquire) == epoch; }, kSweepWaitSpins);
+        }
+        f(g, g + 1, thread);
+        done_[g].store(epoch, std::memory_order_release);
+      }
+    });
+  }
+
+ private:
+  std::vector<int> start_, before_;  // group g's predecessors: before_[start_[g] .. start_[g + 1])
+  std::vector<int> last_;            // scratch: each body's last group
+  std::vector<std::atomic<uint32_t>> done_;  // the pass each group was last solved in
+  uint32_t epoch_ = 0;
+  alignas(64) std::atomic<size_t> next_{0};  // the next group to claim (a line of its own)
+};
+
 class HavokActualStepper final : public Stepper {
  public:
   void stepVelocities(StepContext& c) override {
@@ -65,7 +130,7 @@ class HavokActualStepper final : public Stepper {
     // Without restitution and split impulses no contact row is stored: the groups are the rows.
     inLanes_ = !cs.laneGroups().empty();  // asked for by asksLaneGroups, granted by build()
     if (stableOnly || inLanes_) {
-      solvePart(c, cs.whole(nb), stableOnly, parts_[0]);
+      solvePart(c, cs.whole(nb), stableOnly, parts_[0], nullptr, inLanes_ && pool.threads() > 1);
     } else if (pool.threads() == 1) {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly, parts_[0]);
     } else {
@@ -86,6 +151,11 @@ class HavokActualStepper final : public Stepper {
       });
     }
     for (const PartScratch& s : parts_) c.stats.residual = std::max(c.stats.residual, s.residual);
+    if (pool.threads() > 1) {  // for the next step's asksLaneGroups
+      int largest = 0;
+      for (int k = 0; k < cs.islandCount(); ++k) largest = std::max(largest, cs.islandManifolds(k).count);
+      oneLargeIsland_ = largest > 0 && 2 * static_cast<size_t>(largest) >= cs.frictions.size();
+    }
     c.stats.iterations = n * st.iterations;
     const size_t last = static_cast<size_t>(n - 1) * nb;
     applyRestitution(c, &c.subV[last], &c.subW[last], kappa);
@@ -93,9 +163,14 @@ class HavokActualStepper final : public Stepper {
   }
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
-  // Its lane sweep runs on one thread; build() grants the groups where the rows allow (warm,
-  // contact blocks, no joints; within L2 while the rows are stored beside them).
-  bool asksLaneGroups(const SolverSettings& st, int threads) const override { return st.lanes && threads == 1; }
+  // build() grants the groups where the rows allow (warm, contact blocks, no joints; within L2
+  // while the rows are stored beside them). On more threads, only while the last step was mostly
+  // one island: the groups then go by LaneSchedule, a wait for each group's predecessors, which
+  // costs less than the units' levels on one large island (a pyramid) but more than islands taken
+  // whole by each thread where there are many (a pile) (docs/benchmarks.md).
+  bool asksLaneGroups(const SolverSettings& st, int threads) const override {
+    return st.lanes && (threads == 1 || oneLargeIsland_);
+  }
 
  private:
   // Sub-steps 1..n of one part of the step (an island, or all of it).
@@ -114,8 +189,9 @@ class HavokActualStepper final : public Stepper {
   // the levels, its passes over rows and bodies in blocks, the rows it refreshes listed in the
   // scratch of the thread that found them (parts_[thread]). Else all on this thread, in `scratch`.
   void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly, PartScratch& scratch,
-                 UnitLevels* levels = nullptr) {
-    const bool shared = levels != nullptr;
+                 UnitLevels* levels = nullptr, bool lanesShared = false) {
+    // lanesShared: in lanes on more threads, the sweeps by LaneSchedule and the rest as with levels.
+    const bool shared = levels != nullptr || lanesShared;
     // f(row, the scratch that lists it) for the part's rows, f(body) for its bodies.
     const auto eachRow = [&](auto f) {
       eachIndex(c, part.rows, shared, [&](size_t k, int thread) { f(k, shared ? parts_[static_cast<size_t>(thread)] : scratch); });
@@ -139,7 +215,8 @@ class HavokActualStepper final : public Stepper {
       s.targets.clear();
       s.speculative.clear();
     });
-    if (inLanes_) prepareLanes(c, ratio, invKappa, scratch);
+    if (inLanes_) prepareLanes(c, ratio, invKappa);
+    if (inLanes_ && c.workers().threads() > 1) schedule_.build(cs.laneGroups(), nb);
     const size_t laneBase = static_cast<size_t>(cs.contactFirstRow);
     eachRow([&](size_t k, PartScratch& s) {
       Row& r = cs.rows[k];
@@ -158,8 +235,10 @@ class HavokActualStepper final : public Stepper {
         // Last step's λ from the lanes (which hold the rows' λ̄), row by row as applyRowImpulses;
         // the bodies' part of the warm start as for the stored rows (a part without rows).
         startSubStepImpulses(c, j, ConstraintPart{{}, {}, part.bodies, {}});
-        std::vector<lanes::RigidGroup>& g = cs.laneGroups();
-        lanes::kernel().warmRigid(g.data(), 0, g.size(), c.v.data()->data(), c.w.data()->data());
+        lanes::RigidGroup* g = cs.laneGroups().data();
+        passOverGroups(c, [&](size_t first, size_t last, int) {
+          lanes::kernel().warmRigid(g, first, last, c.v.data()->data(), c.w.data()->data());
+        });
       } else {
         startSubStepImpulses(c, j, part);
       }
@@ -246,16 +325,16 @@ class HavokActualStepper final : public Stepper {
   // λ̄ = λ/κ, the same operations. The rows refreshed between sub-steps get their bias's lane:
   // stored rows through biasLane_ (per contact row), deferred ones listed here from the lanes
   // before the scaling, as the stored rows' pass lists them (a copy of each, laneRows_, for J̌).
-  void prepareLanes(StepContext& c, double ratio, double invKappa, PartScratch& s) {
+  void prepareLanes(StepContext& c, double ratio, double invKappa) {
     ConstraintSet& cs = *c.constraints;
     std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
     c.stats.laneRuns = cs.laneRunCount();
     c.stats.laneGroups = static_cast<int>(groups.size());
     const bool deferred = cs.contactRowsDeferred();
-    if (deferred) listLaneRows(c, ratio, s);
+    if (deferred) listLaneRows(c, ratio);
     else biasLane_.assign(cs.rows.size() - static_cast<size_t>(cs.contactFirstRow), nullptr);
     const size_t rowBase = static_cast<size_t>(cs.contactFirstRow);
-    for (lanes::RigidGroup& g : groups) {
+    eachGroup(c, [&](lanes::RigidGroup& g) {
       if (c.settings->splitImpulse)
         for (int l = 0; l < g.count; ++l)
           for (int q = 0; q < g.points[l]; ++q) splitOff(g.normal[q].bias.x[l]);
@@ -269,12 +348,21 @@ class HavokActualStepper final : public Stepper {
       for (lanes::RigidRowLanes& r : g.friction) scale(r);
       if (!deferred)
         eachLaneRow(cs, g, [&](size_t row, lanes::RigidRowLanes& r, int l) { biasLane_[row - rowBase] = &r.bias.x[l]; });
-    }
+    });
+  }
+
+  // f(group) for every lane group, on the threads (each writes only its own group's rows).
+  template <class F>
+  static void eachGroup(StepContext& c, F f) {
+    std::vector<lanes::RigidGroup>& groups = c.constraints->laneGroups();
+    c.workers().forRange(groups.size(), 64, [&](size_t first, size_t last, int) {
+      for (size_t g = first; g < last; ++g) f(groups[g]);
+    });
   }
 
   // Deferred: the lanes' speculative normals and (τ ≠ 0, friction exempt) friction rows, each
   // copied out as build() would have stored it and listed with its bias's lane.
-  void listLaneRows(StepContext& c, double ratio, PartScratch& s) {
+  void listLaneRows(StepContext& c, double ratio) {
     ConstraintSet& cs = *c.constraints;
     const bool speculative = cs.speculativeContacts();
     const bool targets = ratio != 0 && c.settings->frictionExempt;
@@ -286,10 +374,13 @@ class HavokActualStepper final : public Stepper {
         for (int i = 0; i < 3 && targets; ++i) laneRefs_.push_back({&g, l, g.points[l] + i, &g.friction[i].bias.x[l]});
       }
     laneRows_.resize(laneRefs_.size());  // before any is listed: the lists point into it
-    for (size_t k = 0; k < laneRefs_.size(); ++k) {
+    // A share in each thread's lists: on more threads the refreshes go on the threads, each
+    // thread its own lists.
+    const size_t lists = parts_.size(), count = laneRefs_.size();
+    for (size_t k = 0; k < count; ++k) {
       const LaneRef& ref = laneRefs_[k];
       cs.laneRow(*ref.g, ref.l, ref.q, laneRows_[k]);
-      listRefreshed(laneRows_[k], ref.bias, false, ratio, s);
+      listRefreshed(laneRows_[k], ref.bias, false, ratio, parts_[k * lists / count]);
     }
   }
 
@@ -307,16 +398,16 @@ class HavokActualStepper final : public Stepper {
   // each manifold's impulses (λ = κλ̄, as the rows keep them) for storeImpulses.
   void emptyLanes(StepContext& c, double kappa) {
     ConstraintSet& cs = *c.constraints;
-    if (!cs.contactRowsDeferred()) {
-      for (lanes::RigidGroup& g : cs.laneGroups())
+    const bool deferred = cs.contactRowsDeferred();
+    if (deferred) resizeRewritten(cs.impulses, cs.frictions.size(), c.workers());
+    eachGroup(c, [&](lanes::RigidGroup& g) {
+      if (!deferred) {
         eachLaneRow(cs, g, [&](size_t row, const lanes::RigidRowLanes& r, int l) {
           cs.rows[row].lambda = r.lambda.x[l];
           cs.rows[row].pushed = r.pushed.x[l] != 0;
         });
-      return;
-    }
-    resizeRewritten(cs.impulses, cs.frictions.size(), c.workers());
-    for (const lanes::RigidGroup& g : cs.laneGroups())
+        return;
+      }
       for (int l = 0; l < g.count; ++l) {
         const FrictionDef& fd = cs.frictions[static_cast<size_t>(g.manifold[l])];
         ConstraintSet::ManifoldImpulses& to = cs.impulses[static_cast<size_t>(g.manifold[l])];
@@ -326,6 +417,7 @@ class HavokActualStepper final : public Stepper {
                                            f[1].lambda.x[l] * kappa, lanes::laneVector(f[1].lin, l));
         to.twist = f[2].lambda.x[l] * kappa;
       }
+    });
   }
 
   // One sweep in lanes, in the units' order: every manifold's friction, then every block (split
@@ -335,11 +427,32 @@ class HavokActualStepper final : public Stepper {
     double* v = c.v.data()->data();
     double* w = c.w.data()->data();
     const lanes::BlockFallback fallback{&searchBlock, c.constraints};
-    std::vector<lanes::RigidGroup>& g = c.constraints->laneGroups();
-    if (c.settings->contactOrder == ContactOrder::Manifold)
-      return k.solveRigid(g.data(), 0, g.size(), v, w, lanes::RigidPhase::BlocksThenFriction, measure, fallback);
-    const double friction = k.solveRigid(g.data(), 0, g.size(), v, w, lanes::RigidPhase::Friction, measure, fallback);
-    return std::max(friction, k.solveRigid(g.data(), 0, g.size(), v, w, lanes::RigidPhase::Blocks, measure, fallback));
+    lanes::RigidGroup* g = c.constraints->laneGroups().data();
+    laneChange_.assign(parts_.size() * kPad, 0.0);
+    const auto pass = [&](lanes::RigidPhase phase) {
+      passOverGroups(c, [&](size_t first, size_t last, int t) {
+        double& mine = laneChange_[static_cast<size_t>(t) * kPad];  // the thread's largest change
+        mine = std::max(mine, k.solveRigid(g, first, last, v, w, phase, measure, fallback));
+      });
+    };
+    if (c.settings->contactOrder == ContactOrder::Manifold) {
+      pass(lanes::RigidPhase::BlocksThenFriction);
+    } else {
+      pass(lanes::RigidPhase::Friction);
+      pass(lanes::RigidPhase::Blocks);
+    }
+    return *std::max_element(laneChange_.begin(), laneChange_.end());
+  }
+
+  // f(first, last, thread) over the lane groups in order: on one thread all at once; on more,
+  // group by group on every thread (LaneSchedule), each group once the groups before it on its
+  // moving bodies are done, so that each body's rows are solved in the same order on any number
+  // of threads.
+  template <class F>
+  void passOverGroups(StepContext& c, F f) {
+    WorkerPool& pool = c.workers();
+    if (pool.threads() == 1) f(0, c.constraints->laneGroups().size(), 0);
+    else schedule_.run(pool, f);
   }
   static void searchBlock(void* set, int block, int points, const double* lambda, const double* b, double* delta) {
     ConstraintSet& cs = *static_cast<ConstraintSet*>(set);
@@ -396,6 +509,10 @@ class HavokActualStepper final : public Stepper {
   // threads' waits for each other already cost about what sharing the sweeps saves.
   static constexpr int kLevelled = 2048;
   bool inLanes_ = false;
+  bool oneLargeIsland_ = false;  // the last step's largest island held half its manifolds or more
+  LaneSchedule schedule_;
+  static constexpr size_t kPad = 8;  // doubles: a thread's slot of laneChange_ a cache line on
+  std::vector<double> laneChange_;
   UnitLevels levels_;
   std::vector<int> whole_;  // the islands the threads take whole
   std::vector<double*> biasLane_;  // per stored contact row (from contactFirstRow): its bias's lane

@@ -319,7 +319,6 @@ void UnitLevels::sweepChunks(ConstraintSet& cs, std::vector<Vec3>& v, std::vecto
   // and block of the unit kAhead on are asked for while this one is solved (without, s3 of the
   // 100-level pyramid took 40 % longer on one thread in this order).
   constexpr size_t kAhead = 3;
-  constexpr int kSpins = 256;  // a few µs of pauses, then yields
   const size_t count = order_.size();
   const auto solved = [&](size_t p) { return done_[p / kChunk].sweep[p % kChunk].load(std::memory_order_acquire) == epoch_; };
   for (;;) {
@@ -336,7 +335,7 @@ void UnitLevels::sweepChunks(ConstraintSet& cs, std::vector<Vec3>& v, std::vecto
       // A predecessor in this chunk was solved here, above; one before it, by whichever thread.
       for (size_t s = 0; s < 2; ++s) {
         const int q = before_[2 * p + s];
-        if (q >= 0 && static_cast<size_t>(q) < first) spinUntil([&] { return solved(static_cast<size_t>(q)); }, kSpins);
+        if (q >= 0 && static_cast<size_t>(q) < first) spinUntil([&] { return solved(static_cast<size_t>(q)); }, kSweepWaitSpins);
       }
       solveUnit<Measure>(cs, cs.units[static_cast<size_t>(order_[p])], cs.rows.data(), v.data(), w.data(), k, change);
       done_[p / kChunk].sweep[p % kChunk].store(epoch_, std::memory_order_release);
