@@ -130,12 +130,15 @@ inline double rowVelocity(const Row& r, const Vec3* v, const Vec3* w) {
 
 // v̌ += M̌⁻¹J̌ᵀ dλ.
 // Always inlined: it is the innermost work of every sweep, a call per row otherwise.
+// Component by component, the same arithmetic as Eigen's vA += dl * (r.mA * r.lin) and so on:
+// Eigen's += is a function of its own, which link-time optimisation has left out of line in the
+// sweep once other code used it more (a fifth more of the sweep's time, docs/benchmarks.md).
 __attribute__((always_inline)) inline void applyImpulse(const Row& r, double dl, Vec3& vA, Vec3& wA, Vec3& vB,
                                                         Vec3& wB) {
-  vA += dl * (r.mA * r.lin);
-  wA += dl * r.mAngA;
-  vB -= dl * (r.mB * r.lin);
-  wB += dl * r.mAngB;
+  for (int i = 0; i < 3; ++i) vA[i] += dl * (r.mA * r.lin[i]);
+  for (int i = 0; i < 3; ++i) wA[i] += dl * r.mAngA[i];
+  for (int i = 0; i < 3; ++i) vB[i] -= dl * (r.mB * r.lin[i]);
+  for (int i = 0; i < 3; ++i) wB[i] += dl * r.mAngB[i];
 }
 // Velocities back to the row's bodies that move. A static (or sleeping) body's M̌⁻¹ is zero, so
 // its velocity would come back unchanged: left unwritten, it is read-only to the solve, and
