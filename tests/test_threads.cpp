@@ -96,7 +96,7 @@ TEST(Threads, AnIslandSweptUnitByUnitOnTheThreadsStepsTheSame) {
   const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/atlas/pyramid_40.json");
   for (const char* spec : {"a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", "a5"}) {
     SolverSettings st = resolve(s.solver.merged(expandMethodSpec(spec)[0].overrides));
-    st.lanes = false;  // in lanes A5 shares the runs out instead (the next test)
+    st.lanes = false;  // in lanes A5 schedules its lane groups instead (the next test)
     {  // the case this test is for
       SolverSettings shared = st;
       shared.threads = 2;
