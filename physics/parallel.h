@@ -38,6 +38,26 @@ void spinUntil(F done, int spins) {
 // Pause rounds (a few µs) a sweep's thread waits for another's part before yielding.
 constexpr int kSweepWaitSpins = 256;
 
+// Each thread's running maximum (a sweep's largest change), a cache line each: threads writing
+// neighbouring slots would share one. The largest of them does not depend on which thread
+// noted what.
+class ThreadMaxima {
+ public:
+  void reset(int threads) { slots_.assign(static_cast<size_t>(threads), Slot{}); }
+  double& of(int thread) { return slots_[static_cast<size_t>(thread)].value; }
+  double largest() const {
+    double m = 0;
+    for (const Slot& s : slots_) m = std::max(m, s.value);
+    return m;
+  }
+
+ private:
+  struct alignas(64) Slot {
+    double value = 0;
+  };
+  std::vector<Slot> slots_;
+};
+
 class WorkerPool {
  public:
   // threads >= 1; 1 runs everything on the caller. Holds at most twice the machine's cores, and

@@ -216,7 +216,7 @@ class HavokActualStepper final : public Stepper {
       s.speculative.clear();
     });
     if (inLanes_) prepareLanes(c, ratio, invKappa);
-    if (inLanes_ && c.workers().threads() > 1) schedule_.build(cs.laneGroups(), nb);
+    if (lanesShared) schedule_.build(cs.laneGroups(), nb);
     const size_t laneBase = static_cast<size_t>(cs.contactFirstRow);
     eachRow([&](size_t k, PartScratch& s) {
       Row& r = cs.rows[k];
@@ -428,10 +428,10 @@ class HavokActualStepper final : public Stepper {
     double* w = c.w.data()->data();
     const lanes::BlockFallback fallback{&searchBlock, c.constraints};
     lanes::RigidGroup* g = c.constraints->laneGroups().data();
-    laneChange_.assign(parts_.size() * kPad, 0.0);
+    laneChange_.reset(c.workers().threads());
     const auto pass = [&](lanes::RigidPhase phase) {
       passOverGroups(c, [&](size_t first, size_t last, int t) {
-        double& mine = laneChange_[static_cast<size_t>(t) * kPad];  // the thread's largest change
+        double& mine = laneChange_.of(t);
         mine = std::max(mine, k.solveRigid(g, first, last, v, w, phase, measure, fallback));
       });
     };
@@ -441,7 +441,7 @@ class HavokActualStepper final : public Stepper {
       pass(lanes::RigidPhase::Friction);
       pass(lanes::RigidPhase::Blocks);
     }
-    return *std::max_element(laneChange_.begin(), laneChange_.end());
+    return laneChange_.largest();
   }
 
   // f(first, last, thread) over the lane groups in order: on one thread all at once; on more,
@@ -511,8 +511,7 @@ class HavokActualStepper final : public Stepper {
   bool inLanes_ = false;
   bool oneLargeIsland_ = false;  // the last step's largest island held half its manifolds or more
   LaneSchedule schedule_;
-  static constexpr size_t kPad = 8;  // doubles: a thread's slot of laneChange_ a cache line on
-  std::vector<double> laneChange_;
+  ThreadMaxima laneChange_;  // in lanes: each thread's largest change in the sweep
   UnitLevels levels_;
   std::vector<int> whole_;  // the islands the threads take whole
   std::vector<double*> biasLane_;  // per stored contact row (from contactFirstRow): its bias's lane

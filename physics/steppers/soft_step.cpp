@@ -230,7 +230,7 @@ class SoftStepper final : public Stepper {
     phaseCount_ = order == ContactOrder::Manifold ? 1 : 2;
     phases_[0] = order == ContactOrder::Manifold ? Phase::Both : c.settings->warmStart ? Phase::Friction : Phase::Normals;
     phases_[1] = c.settings->warmStart ? Phase::Normals : Phase::Friction;
-    change_.assign(static_cast<size_t>(c.workers().threads()) * kPad, 0.0);
+    change_.reset(c.workers().threads());
     if (lanes_) buildLanes(c);
   }
 
@@ -462,7 +462,7 @@ class SoftStepper final : public Stepper {
       const ConstraintSet& cs = *c.constraints;
       const int islands = cs.islandCount();
       if (islands <= 1 || c.workers().threads() == 1) {
-        for (size_t k = 0; k < cs.frictions.size(); ++k) f(k, change_[0]);
+        for (size_t k = 0; k < cs.frictions.size(); ++k) f(k, change_.of(0));
         return;
       }
       // Islands share no body that moves: each island's manifolds in the step's order, the
@@ -505,7 +505,7 @@ class SoftStepper final : public Stepper {
   void onBlock(int t, B body) {
     double change = 0;
     body(change);
-    double& mine = change_[static_cast<size_t>(t) * kPad];
+    double& mine = change_.of(t);
     mine = std::max(mine, change);
   }
 
@@ -559,12 +559,11 @@ class SoftStepper final : public Stepper {
         change = std::max(change, solveRow<Measure>(r, rows, v, w, [&](double jv) { return -(d.a * jv + d.b) - d.si * r.lambda; }));
       }
     }
-    std::fill(change_.begin(), change_.end(), 0.0);
-    change_[0] = change;  // the joints': uncoloured, one running maximum over the sweep, as before
+    change_.reset(c.workers().threads());
+    change_.of(0) = change;  // the joints': uncoloured, one running maximum over the sweep, as before
     if (lanes_) {
       sweepLanes(c, p, Measure);
-      for (double x : change_) change = std::max(change, x);
-      return change;
+      return change_.largest();
     }
     for (int ph = 0; ph < phaseCount_; ++ph) {
       const Phase phase = phases_[ph];
@@ -599,8 +598,7 @@ class SoftStepper final : public Stepper {
         storeMoving(rows[f.row], va, wa, vb, wb, v, w);
       });
     }
-    for (double x : change_) change = std::max(change, x);
-    return change;
+    return change_.largest();
   }
 
   enum class Phase : unsigned char { Both, Normals, Friction };
@@ -620,8 +618,7 @@ class SoftStepper final : public Stepper {
   Phase phases_[2] = {Phase::Both, Phase::Both};  // a sweep's passes over the manifolds (no allocation a step)
   int phaseCount_ = 1;
   int jointUnits_ = 0;
-  static constexpr size_t kPad = 8;   // change_'s slots a cache line apart
-  std::vector<double> change_;        // per thread (every kPad-th): the sweep's largest velocity change
+  ThreadMaxima change_;               // per thread: the sweep's largest velocity change
 
   static constexpr unsigned char kContactSoft = 0, kStaticSoft = 1, kJointSoft = 2;
   Softness soft_[3];

@@ -347,17 +347,15 @@ double UnitLevels::sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Ve
                          bool measure, WorkerPool& pool) {
   ++epoch_;
   next_.store(0, std::memory_order_relaxed);
-  change_.assign(static_cast<size_t>(pool.threads()), Change{0});
+  change_.reset(pool.threads());
   // One block a thread; each claims chunks until none is left (a thread that joins late finds
   // fewer, or none: then the others have solved them).
   pool.forBlocks(static_cast<size_t>(pool.threads()), [&](size_t, int thread) {
-    double& change = change_[static_cast<size_t>(thread)].value;
+    double& change = change_.of(thread);
     if (measure) sweepChunks<true>(cs, v, w, k, change);
     else sweepChunks<false>(cs, v, w, k, change);
   });
-  double largest = 0;
-  for (const Change& c : change_) largest = std::max(largest, c.value);
-  return largest;
+  return change_.largest();
 }
 
 double sweep(ConstraintSet& cs, std::vector<Vec3>& v, std::vector<Vec3>& w, const SweepScales& k, bool measure) {

@@ -246,10 +246,7 @@ class UnitLevels {
   std::vector<Done> done_;
   uint32_t epoch_ = 0;
   std::atomic<size_t> next_{0};  // the next place to claim
-  struct alignas(64) Change {  // a thread's own cache line
-    double value;
-  };
-  std::vector<Change> change_;
+  ThreadMaxima change_;  // per thread: its largest change in the sweep
 };
 
 // A contact block of 2 to 4 points (BlockData): the increment Δ of its impulses λ for b = cBias β -
