@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cassert>
 #include <memory>
 #include <condition_variable>
 #include <cstddef>
@@ -158,6 +159,98 @@ class WorkerPool {
   static std::atomic<bool> lastFirst_;
   int threads_;
   std::vector<std::thread> workers_;
+};
+
+// Items (groups of rows) solved in their order on every thread of a pool: a pass over them is one
+// job in which each thread goes through its own items in order, solving each once the items
+// before it on its moving bodies (its predecessors) are done in this pass. Every body's items are
+// then solved in the serial order: the same numbers on any number of threads. An item waits only
+// for the few it follows (a pyramid's runs overlap: a run's first groups can go while the run
+// before ends), not for a whole run and a barrier. And it never waits for ever: the first item
+// not done is its thread's next, and those before it are done. A5's and the soft step's lane
+// groups.
+class OrderedSchedule {
+ public:
+  // The predecessors of each of `items` items over `bodies` bodies: movingBodies(item, follow)
+  // calls follow(body) for each body the item writes (one that moves). runOf(item) gives the
+  // first and one past the last item of its run (items next to each other that share no moving
+  // body). On more than one thread (`threads`), each item goes to one thread for good, so that a body's
+  // velocities mostly stay in one core's cache: the run cut into `threads` equal parts, the
+  // thread of the part its middle falls in; on a cut, the one of the two that last wrote most of
+  // its bodies. A pyramid's runs are diagonals across it from the ground up, so a thread keeps
+  // its stretch of them, the lower or the upper (docs/benchmarks.md, "The soft step's runs on
+  // two threads").
+  template <class MovingBodies, class RunOf>
+  void build(size_t items, size_t bodies, int threads, MovingBodies movingBodies, RunOf runOf) {
+    last_.assign(bodies, -1);
+    owner_.assign(bodies, -1);
+    start_.assign(1, 0);
+    before_.clear();
+    const size_t t = static_cast<size_t>(std::max(1, threads));
+    mine_.assign(t, {});
+    for (size_t item = 0; item < items; ++item) {
+      const size_t first = before_.size();
+      touched_.clear();
+      movingBodies(item, [&](int body) {
+        int& last = last_[static_cast<size_t>(body)];
+        if (last >= 0 && std::find(before_.begin() + static_cast<ptrdiff_t>(first), before_.end(), last) == before_.end())
+          before_.push_back(last);
+        last = static_cast<int>(item);
+        touched_.push_back(body);
+      });
+      start_.push_back(static_cast<int>(before_.size()));
+      const std::pair<size_t, size_t> run = runOf(item);
+      const size_t middle = (2 * (item - run.first) + 1) * t, twice = 2 * (run.second - run.first);
+      size_t thread = middle / twice;
+      if (middle % twice == 0) {  // on the cut between thread - 1 and thread
+        int votes = 0;  // for thread, against thread - 1
+        for (int body : touched_) {
+          const int o = owner_[static_cast<size_t>(body)];
+          votes += o == static_cast<int>(thread) ? 1 : o == static_cast<int>(thread) - 1 ? -1 : 0;
+        }
+        if (votes <= 0) --thread;
+      }
+      for (int body : touched_) owner_[static_cast<size_t>(body)] = static_cast<int>(thread);
+      mine_[thread].push_back(static_cast<int>(item));
+    }
+    if (done_.size() < items) {
+      done_ = std::vector<std::atomic<uint32_t>>(items);
+      epoch_ = 0;
+    }
+  }
+  // f(item, item + 1, thread) for every item of the last build(), on every thread of the pool.
+  template <class F>
+  void run(WorkerPool& pool, F& f) {
+    const uint32_t epoch = ++epoch_;
+    if (epoch == 0) {  // wrapped: no flag may hold the new pass's number already
+      for (std::atomic<uint32_t>& d : done_) d.store(0, std::memory_order_relaxed);
+      epoch_ = 1;
+      run(pool, f);
+      return;
+    }
+    const auto solve = [&](size_t g, int thread) {
+      for (int p = start_[g]; p < start_[g + 1]; ++p) {
+        const std::atomic<uint32_t>& d = done_[static_cast<size_t>(before_[static_cast<size_t>(p)])];
+        spinUntil([&] { return d.load(std::memory_order_acquire) == epoch; }, kSweepWaitSpins);
+      }
+      f(g, g + 1, thread);
+      done_[g].store(epoch, std::memory_order_release);
+    };
+    // Each list on its own thread: one thread taking two lists would wait in the first for the
+    // second's items (forBlocks gives each thread its own block first).
+    assert(mine_.size() == static_cast<size_t>(pool.threads()));
+    pool.forBlocks(mine_.size(), [&](size_t list, int thread) {
+      for (int g : mine_[list]) solve(static_cast<size_t>(g), thread);
+    });
+  }
+
+ private:
+  std::vector<int> start_, before_;  // item g's predecessors: before_[start_[g] .. start_[g + 1])
+  std::vector<int> last_;            // scratch: each body's last item
+  std::vector<int> owner_, touched_;  // scratch: each body's last thread; an item's moving bodies
+  std::vector<std::vector<int>> mine_;  // each thread's items, in order
+  std::vector<std::atomic<uint32_t>> done_;  // the pass each item was last solved in
+  uint32_t epoch_ = 0;
 };
 
 }  // namespace substep

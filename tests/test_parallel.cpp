@@ -1,12 +1,15 @@
 // The step's worker pool (physics/parallel.h): every block handed out once, on every thread
 // count, job after job; a thread starts on its own share of the blocks; an exception in a block
-// reaches the caller; a Busy keeps the workers awake between jobs.
+// reaches the caller; a Busy keeps the workers awake between jobs; OrderedSchedule solves each
+// body's items in their order.
 #include "physics/parallel.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <random>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -108,4 +111,51 @@ TEST(WorkerPool, ABusyKeepsTheWorkersAwakeBetweenJobs) {
   std::atomic<int> n{0};
   pool.forBlocks(100, [&](size_t, int) { n.fetch_add(1); });
   EXPECT_EQ(n.load(), 100);
+}
+
+// OrderedSchedule: random items over a few bodies (so that most items follow others), in runs of
+// three (which only say where each item's thread is): on any number of threads, pass after pass,
+// each body's items are solved in the items' order, each once. An item solved before its
+// predecessors are done would show in a body's list out of order (and, under the sanitizers, as
+// a race on it).
+TEST(OrderedSchedule, EachBodysItemsInTheirOrderOnAnyNumberOfThreads) {
+  static constexpr size_t kItems = 600, kBodies = 40;
+  std::mt19937 rng(7);
+  std::vector<std::vector<int>> bodiesOf(kItems);
+  for (std::vector<int>& b : bodiesOf) {
+    const int count = 1 + static_cast<int>(rng() % 4);
+    for (int k = 0; k < count; ++k) {
+      const int body = static_cast<int>(rng() % kBodies);
+      if (std::find(b.begin(), b.end(), body) == b.end()) b.push_back(body);
+    }
+  }
+  std::vector<std::vector<int>> serial(kBodies);
+  for (size_t item = 0; item < kItems; ++item)
+    for (int body : bodiesOf[item]) serial[static_cast<size_t>(body)].push_back(static_cast<int>(item));
+  for (int threads : {1, 2, 3, 8}) {
+    WorkerPool pool(threads);
+    OrderedSchedule schedule;
+    schedule.build(
+        kItems, kBodies, pool.threads(),
+        [&](size_t item, auto follow) {
+          for (int body : bodiesOf[item]) follow(body);
+        },
+        [](size_t item) { return std::pair<size_t, size_t>(item / 3 * 3, std::min(kItems, item / 3 * 3 + 3)); });
+    for (int pass = 0; pass < 3; ++pass) {
+      std::vector<std::vector<int>> solved(kBodies);
+      std::atomic<int> calls{0};
+      auto f = [&](size_t first, size_t last, int) {
+        for (size_t item = first; item < last; ++item) {
+          for (int body : bodiesOf[item]) solved[static_cast<size_t>(body)].push_back(static_cast<int>(item));
+          for (volatile int spin = 0; spin < 200; spin = spin + 1) {  // time for the other threads to run ahead
+          }
+        }
+        calls.fetch_add(1);
+      };
+      schedule.run(pool, f);
+      ASSERT_EQ(calls.load(), static_cast<int>(kItems)) << threads << " threads, pass " << pass;
+      for (size_t body = 0; body < kBodies; ++body)
+        ASSERT_EQ(solved[body], serial[body]) << threads << " threads, pass " << pass << ", body " << body;
+    }
+  }
 }

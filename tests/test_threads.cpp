@@ -111,21 +111,24 @@ TEST(Threads, AnIslandSweptUnitByUnitOnTheThreadsStepsTheSame) {
   }
 }
 
-// A5 in lanes on more threads, where the last step was mostly one island: the threads claim the
-// lane groups in order, each solved once the groups before it on its moving bodies are
-// (LaneSchedule), in its warm start and every pass of its sweeps. On the 40-level pyramid under
-// pyramid.json's settings, with τ 0 and 0.2 (the friction rows' biases refreshed in the lanes, on
-// the threads): the same steps on one, two and three threads.
+// Lane groups by OrderedSchedule on more threads: each group on its thread once the groups before it
+// on its moving bodies are done, in every pass over them (A5, where the last step was mostly one
+// island: its warm start and every phase of its sweeps; the soft step, where its runs are short:
+// its warm start, solve and relax). On the 40-level pyramid under pyramid.json's settings, A5 with
+// τ 0 and 0.2 (the friction rows' biases refreshed in the lanes, on the threads), and the soft
+// step: the same steps on one, two and three threads.
 TEST(Threads, LaneGroupsScheduledOnTheThreadsStepTheSame) {
   const Scene s = loadScene(SUBSTEP_SOURCE_DIR "/assets/scenes/atlas/pyramid_40.json");
-  for (const char* spec : {"a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", "a5:n=4:m=1:kappa=0.85:tau=0.2:warm=on:cblock=on"}) {
+  for (const char* spec : {"a5:n=4:m=1:kappa=0.85:tau=0:warm=on:cblock=on", "a5:n=4:m=1:kappa=0.85:tau=0.2:warm=on:cblock=on", "soft"}) {
     const SolverSettings st = resolve(s.solver.merged(expandMethodSpec(spec)[0].overrides));
-    {  // the case this test is for: the second step on, in lanes
+    {  // the case this test is for: the second step on, in lanes by the schedule
       SolverSettings shared = st;
       shared.threads = 2;
       World w(s.model, shared, s.initial);
       w.step();
-      ASSERT_GT(w.step().solver.laneGroups, 100) << spec;
+      const StepReport& r = w.step();
+      ASSERT_GT(r.solver.laneGroups, 100) << spec;
+      ASSERT_TRUE(r.solver.laneScheduled) << spec;
     }
     const std::vector<std::string> one = trajectory(s, st, 1, 30);
     for (int threads : {2, 3})

@@ -100,6 +100,8 @@ class ConstraintSet {
   // laneBlock(k), the impulses left in `impulses`); else the rows are stored beside them.
   void askLaneGroups(bool ask) { laneGroupsAsked_ = ask; }
   std::vector<lanes::RigidGroup>& laneGroups() { return laneGroups_; }
+  // Run r's groups (LaneRuns' runs): laneGroups()[laneRunGroups()[r] .. laneRunGroups()[r + 1]).
+  const std::vector<int>& laneRunGroups() const { return laneRunGroups_; }
   // Row q of lane l of a lane group (its manifold's normal rows, then its three friction rows) as
   // build() stores it.
   void laneRow(const lanes::RigidGroup& g, int l, int q, Row& row) const;
@@ -191,6 +193,7 @@ class ConstraintSet {
   LaneRuns laneRuns_;
   std::vector<lanes::RigidGroup> laneGroups_;
   std::vector<int> laneGroupStart_;  // each group's first place in laneRuns_.manifolds(); one past the last
+  std::vector<int> laneRunGroups_;   // each run's first group; one past the last
   int runCount_ = 0;
   std::vector<BlockData> laneBlocks_;  // per manifold: its contact block, until finishAll numbers them
 

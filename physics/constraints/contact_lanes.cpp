@@ -130,9 +130,13 @@ void ConstraintSet::formulateLaneGroups() {
   const std::vector<int>& order = laneRuns_.manifolds();
   const std::vector<int>& start = laneRuns_.starts();
   laneGroupStart_.clear();
-  for (size_t r = 0; r + 1 < start.size(); ++r)
+  laneRunGroups_.clear();
+  for (size_t r = 0; r + 1 < start.size(); ++r) {
+    laneRunGroups_.push_back(static_cast<int>(laneGroupStart_.size()));
     for (int at = start[r]; at < start[r + 1]; at += lanes::kLanes) laneGroupStart_.push_back(at);
+  }
   laneGroupStart_.push_back(start.back());
+  laneRunGroups_.push_back(static_cast<int>(laneGroupStart_.size()) - 1);
   runCount_ = static_cast<int>(start.size()) - 1;
   const size_t groups = laneGroupStart_.size() - 1;
   resizeRewritten(laneGroups_, groups, workers());

@@ -28,71 +28,6 @@ namespace substep {
 
 namespace {
 
-// A5's lane groups on several threads: a pass over the groups (a sweep's phase, the warm start)
-// as one job in which the threads claim the groups one at a time in order and each solves its
-// group once the groups before it on its moving bodies (its predecessors) are done in this pass.
-// Every body's rows are then solved in the serial order: the same numbers on any number of
-// threads. A group waits only for the few it follows (a pyramid's runs overlap: a run's first
-// groups can go while the run before ends), not for a whole run.
-class LaneSchedule {
- public:
-  // The predecessors of each of the groups, in their order.
-  void build(const std::vector<lanes::RigidGroup>& groups, size_t bodies) {
-    last_.assign(bodies, -1);
-    start_.assign(1, 0);
-    before_.clear();
-    for (size_t gi = 0; gi < groups.size(); ++gi) {
-      const lanes::RigidGroup& g = groups[gi];
-      const size_t first = before_.size();
-      const auto follow = [&](int body) {
-        int& last = last_[static_cast<size_t>(body)];
-        if (last >= 0 && std::find(before_.begin() + static_cast<ptrdiff_t>(first), before_.end(), last) == before_.end())
-          before_.push_back(last);
-        last = static_cast<int>(gi);
-      };
-      for (int l = 0; l < g.count; ++l) {
-        if (g.mA.x[l] != 0) follow(g.a[l]);  // zero: a body that does not move (the kernel never writes it)
-        if (g.mB.x[l] != 0) follow(g.b[l]);
-      }
-      start_.push_back(static_cast<int>(before_.size()));
-    }
-    if (done_.size() < groups.size()) {
-      done_ = std::vector<std::atomic<uint32_t>>(groups.size());
-      epoch_ = 0;
-    }
-  }
-  // f(group, group + 1, thread) for every group of the last build(), on every thread of the pool.
-  template <class F>
-  void run(WorkerPool& pool, F& f) {
-    const uint32_t epoch = ++epoch_;
-    if (epoch == 0) {  // wrapped: no flag may hold the new pass's number already
-      for (std::atomic<uint32_t>& d : done_) d.store(0, std::memory_order_relaxed);
-      epoch_ = 1;
-      run(pool, f);
-      return;
-    }
-    const size_t count = start_.size() - 1;
-    next_.store(0, std::memory_order_relaxed);
-    pool.forBlocks(static_cast<size_t>(pool.threads()), [&](size_t, int thread) {
-      for (size_t g; (g = next_.fetch_add(1, std::memory_order_relaxed)) < count;) {
-        for (int p = start_[g]; p < start_[g + 1]; ++p) {
-          const std::atomic<uint32_t>& d = done_[static_cast<size_t>(before_[static_cast<size_t>(p)])];
-          spinUntil([&] { return d.load(std::memory_order_acquire) == epoch; }, kSweepWaitSpins);
-        }
-        f(g, g + 1, thread);
-        done_[g].store(epoch, std::memory_order_release);
-      }
-    });
-  }
-
- private:
-  std::vector<int> start_, before_;  // group g's predecessors: before_[start_[g] .. start_[g + 1])
-  std::vector<int> last_;            // scratch: each body's last group
-  std::vector<std::atomic<uint32_t>> done_;  // the pass each group was last solved in
-  uint32_t epoch_ = 0;
-  alignas(64) std::atomic<size_t> next_{0};  // the next group to claim (a line of its own)
-};
-
 class HavokActualStepper final : public Stepper {
  public:
   void stepVelocities(StepContext& c) override {
@@ -165,7 +100,7 @@ class HavokActualStepper final : public Stepper {
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
   // build() grants the groups where the rows allow (warm, contact blocks, no joints; within L2
   // while the rows are stored beside them). On more threads, only while the last step was mostly
-  // one island: the groups then go by LaneSchedule, a wait for each group's predecessors, which
+  // one island: the groups then go by OrderedSchedule, a wait for each group's predecessors, which
   // costs less than the units' levels on one large island (a pyramid) but more than islands taken
   // whole by each thread where there are many (a pile) (docs/benchmarks.md).
   bool asksLaneGroups(const SolverSettings& st, int threads) const override {
@@ -190,7 +125,7 @@ class HavokActualStepper final : public Stepper {
   // scratch of the thread that found them (parts_[thread]). Else all on this thread, in `scratch`.
   void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly, PartScratch& scratch,
                  UnitLevels* levels = nullptr, bool lanesShared = false) {
-    // lanesShared: in lanes on more threads, the sweeps by LaneSchedule and the rest as with levels.
+    // lanesShared: in lanes on more threads, the sweeps by OrderedSchedule and the rest as with levels.
     const bool shared = levels != nullptr || lanesShared;
     // f(row, the scratch that lists it) for the part's rows, f(body) for its bodies.
     const auto eachRow = [&](auto f) {
@@ -216,7 +151,18 @@ class HavokActualStepper final : public Stepper {
       s.speculative.clear();
     });
     if (inLanes_) prepareLanes(c, ratio, invKappa);
-    if (lanesShared) schedule_.build(cs.laneGroups(), nb);
+    c.stats.laneScheduled = lanesShared;
+    if (lanesShared) {
+      const std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
+      const std::vector<int>& runs = cs.laneRunGroups();
+      size_t r = 0;  // the run of the group asked for (asked in order)
+      schedule_.build(
+          groups.size(), nb, c.workers().threads(), [&](size_t gi, auto follow) { lanes::eachMovingBody(groups[gi], follow); },
+          [&](size_t gi) {
+            while (static_cast<size_t>(runs[r + 1]) <= gi) ++r;
+            return std::pair<size_t, size_t>(static_cast<size_t>(runs[r]), static_cast<size_t>(runs[r + 1]));
+          });
+    }
     const size_t laneBase = static_cast<size_t>(cs.contactFirstRow);
     eachRow([&](size_t k, PartScratch& s) {
       Row& r = cs.rows[k];
@@ -445,7 +391,7 @@ class HavokActualStepper final : public Stepper {
   }
 
   // f(first, last, thread) over the lane groups in order: on one thread all at once; on more,
-  // group by group on every thread (LaneSchedule), each group once the groups before it on its
+  // group by group on every thread (OrderedSchedule), each group once the groups before it on its
   // moving bodies are done, so that each body's rows are solved in the same order on any number
   // of threads.
   template <class F>
@@ -510,7 +456,7 @@ class HavokActualStepper final : public Stepper {
   static constexpr int kLevelled = 2048;
   bool inLanes_ = false;
   bool oneLargeIsland_ = false;  // the last step's largest island held half its manifolds or more
-  LaneSchedule schedule_;
+  OrderedSchedule schedule_;  // the lane groups on more threads
   ThreadMaxima laneChange_;  // in lanes: each thread's largest change in the sweep
   UnitLevels levels_;
   std::vector<int> whole_;  // the islands the threads take whole

@@ -191,6 +191,16 @@ struct Kernel {
   const char* name;  // "avx512", "avx2" or "sse2"
 };
 
+// f(body) for each body a group's solve writes, a Group's or a RigidGroup's: the moving ones (a
+// lane's zero inverse mass: a body that does not move, which the kernels never write).
+template <class G, class F>
+void eachMovingBody(const G& g, F f) {
+  for (int l = 0; l < g.count; ++l) {
+    if (g.mA.x[l] != 0) f(g.a[l]);
+    if (g.mB.x[l] != 0) f(g.b[l]);
+  }
+}
+
 // The kernel the soft step uses: the widest this processor runs, unless useKernel chose another.
 const Kernel& kernel();
 // For the tests and the bench: solve with k from now on (null: the widest again).

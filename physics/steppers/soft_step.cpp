@@ -23,8 +23,10 @@
 // to the last bit for any number of threads. The manifolds are solved eight at a time in SIMD lanes
 // (soft_lanes.h, SolverSettings::lanes) in runs that share no moving body: the colours, or
 // uncoloured runs of the step's order (LaneRuns), which give its numbers to the last bit;
-// a run's groups go to the threads. Without the lanes (or in a split contact order) one manifold
-// at a time, uncoloured the islands to the threads island by island: the same trajectory again.
+// a run's groups go to the threads, or where runs are short each group to a thread of its own
+// once those before it on its bodies are done (OrderedSchedule). Without the lanes (or in a split
+// contact order) one manifold at a time, uncoloured the islands to the threads island by island:
+// the same trajectory again.
 #include "physics/steppers/soft_lanes.h"
 #include "physics/constraints/lane_runs.h"
 #include "physics/step_arrays.h"
@@ -355,6 +357,23 @@ class SoftStepper final : public Stepper {
         fill(*seg, gi, thread);
       }
     });
+    // Runs shorter on average than two blocks a thread (a pyramid's: two or three groups, most
+    // left to one thread and each ended by a wait for all) go by OrderedSchedule instead: each
+    // group on its thread once those before it on its moving bodies are done, whatever their
+    // run. Long runs (a pile's) are shared out run by run, a block at a time.
+    const int threads = c.workers().threads();
+    scheduled_ = threads > 1 && cs.colourStart.empty() &&
+                 groups < segments_.size() * 2 * static_cast<size_t>(threads) * kRunGrain;
+    c.stats.laneScheduled = scheduled_;
+    if (scheduled_) {
+      auto seg = segments_.begin();  // the run of the group asked for (asked in order)
+      schedule_.build(
+          groups, c.bodies(), threads, [&](size_t gi, auto follow) { lanes::eachMovingBody(groups_[gi], follow); },
+          [&](size_t gi) {
+            while (seg->last <= gi) ++seg;
+            return std::pair<size_t, size_t>(seg->first, seg->last);
+          });
+    }
   }
   // Row r into lane l (null: a zero row), with its λ and pushed as the step starts.
   static void laneRow(lanes::RowLanes& to, int l, const Row* r) {
@@ -429,15 +448,18 @@ class SoftStepper final : public Stepper {
     });
   }
 
-  // f(first, last, thread) over the lanes' groups, run by run: each run's on the threads, the
-  // colours' overflow in order on this one.
+  // f(first, last, thread) over the lanes' groups: by the schedule, or run by run, each run's on
+  // the threads, the colours' overflow in order on this one.
   template <class F>
   void eachSegment(StepContext& c, F f) {
+    if (scheduled_) {
+      schedule_.run(c.workers(), f);
+      return;
+    }
     for (const Segment& seg : segments_) {
       if (seg.serial) f(seg.first, seg.last, 0);
       else
-        c.workers().forRange(seg.last - seg.first, kManifoldGrain / lanes::kLanes,
-                             [&](size_t b, size_t e, int t) { f(seg.first + b, seg.first + e, t); });
+        c.workers().forRange(seg.last - seg.first, kRunGrain, [&](size_t b, size_t e, int t) { f(seg.first + b, seg.first + e, t); });
     }
   }
   static double* vel(std::vector<Vec3>& v) { return v.data()->data(); }
@@ -614,7 +636,10 @@ class SoftStepper final : public Stepper {
   const int* laneOrder_ = nullptr;  // the manifolds in the order of the runs: colourOrder or runs_'
   LaneRuns runs_;
   static constexpr size_t kManifoldGrain = 32;  // manifolds of a colour a thread takes at a time
+  static constexpr size_t kRunGrain = kManifoldGrain / lanes::kLanes;  // groups of a run a thread takes at a time
   static constexpr size_t kIslandGrain = 512;   // manifolds of whole islands a thread takes at a time
+  bool scheduled_ = false;  // the groups by schedule_, not run by run (buildLanes)
+  OrderedSchedule schedule_;
   Phase phases_[2] = {Phase::Both, Phase::Both};  // a sweep's passes over the manifolds (no allocation a step)
   int phaseCount_ = 1;
   int jointUnits_ = 0;

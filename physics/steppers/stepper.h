@@ -28,6 +28,7 @@ struct StepStats {
   int rows = 0;
   int laneRuns = 0;        // soft, a5: the runs its manifolds were solved in, eight at a time (0: one at a time)
   int laneGroups = 0;      // soft, a5: the groups of eight of those runs (a group's lanes not in use cost as much)
+  bool laneScheduled = false;  // soft, a5: the groups went by OrderedSchedule on the threads, not run by run
 };
 
 // What a stepper works on during one step. The world fills it in s1/s2.
