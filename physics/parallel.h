@@ -1,7 +1,8 @@
 // The threads a step runs on (SolverSettings::threads): the calling thread and threads - 1
 // workers. Work is handed out in blocks as threads ask for them, so which thread does which block
 // varies from run to run; every caller makes its result independent of that (each block writes
-// only its own outputs; what is combined is combined in block order afterwards), which is why a
+// only its own outputs, or in an OrderedSchedule what it shares in the order its waits set; what
+// is combined is combined in block order afterwards), which is why a
 // trajectory is the same to the last bit for any number of threads (docs/benchmarks.md,
 // "Threads").
 #pragma once
@@ -17,6 +18,7 @@
 #include <mutex>
 #include <thread>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace substep {
@@ -162,24 +164,25 @@ class WorkerPool {
 };
 
 // Items (groups of rows) solved in their order on every thread of a pool: a pass over them is one
-// job in which each thread goes through its own items in order, solving each once the items
-// before it on its moving bodies (its predecessors) are done in this pass. Every body's items are
-// then solved in the serial order: the same numbers on any number of threads. An item waits only
-// for the few it follows (a pyramid's runs overlap: a run's first groups can go while the run
-// before ends), not for a whole run and a barrier. And it never waits for ever: the first item
-// not done is its thread's next, and those before it are done. A5's and the soft step's lane
+// job in which each item is solved once the items before it on its moving bodies (its
+// predecessors) are done in this pass. Every body's items are then solved in the serial order:
+// the same numbers on any number of threads. An item waits only for the few it follows (a
+// pyramid's runs overlap: a run's first groups can go while the run before ends), not for a whole
+// run and a barrier. Each thread has its own list of the items, in order, and takes the next of it
+// once that is ready; else the next of another list that is, so that one thread does all when the
+// others are busy or off the core. Only a ready item is taken, and the first item not done is
+// always the next of its list and ready: no wait lasts for ever. A5's and the soft step's lane
 // groups.
 class OrderedSchedule {
  public:
   // The predecessors of each of `items` items over `bodies` bodies: movingBodies(item, follow)
   // calls follow(body) for each body the item writes (one that moves). runOf(item) gives the
   // first and one past the last item of its run (items next to each other that share no moving
-  // body). On more than one thread (`threads`), each item goes to one thread for good, so that a body's
-  // velocities mostly stay in one core's cache: the run cut into `threads` equal parts, the
-  // thread of the part its middle falls in; on a cut, the one of the two that last wrote most of
-  // its bodies. A pyramid's runs are diagonals across it from the ground up, so a thread keeps
-  // its stretch of them, the lower or the upper (docs/benchmarks.md, "The soft step's runs on
-  // two threads").
+  // body). Each item goes on the list of one of `threads` threads, so that a body's velocities
+  // mostly stay in one core's cache: the run cut into `threads` equal parts, the list of the part
+  // its middle falls in; on a cut, of the two threads the one that last wrote most of its bodies.
+  // A pyramid's runs are diagonals across it from the ground up, so a thread keeps its stretch
+  // of them, the lower or the upper (docs/benchmarks.md, "The soft step's runs on two threads").
   template <class MovingBodies, class RunOf>
   void build(size_t items, size_t bodies, int threads, MovingBodies movingBodies, RunOf runOf) {
     last_.assign(bodies, -1);
@@ -188,11 +191,13 @@ class OrderedSchedule {
     before_.clear();
     const size_t t = static_cast<size_t>(std::max(1, threads));
     mine_.assign(t, {});
+    if (next_.size() != t) next_ = std::vector<Cursor>(t);
     for (size_t item = 0; item < items; ++item) {
       const size_t first = before_.size();
       touched_.clear();
       movingBodies(item, [&](int body) {
         int& last = last_[static_cast<size_t>(body)];
+        if (last == static_cast<int>(item)) return;  // named twice: once is enough (no wait on itself)
         if (last >= 0 && std::find(before_.begin() + static_cast<ptrdiff_t>(first), before_.end(), last) == before_.end())
           before_.push_back(last);
         last = static_cast<int>(item);
@@ -200,6 +205,7 @@ class OrderedSchedule {
       });
       start_.push_back(static_cast<int>(before_.size()));
       const std::pair<size_t, size_t> run = runOf(item);
+      assert(run.first <= item && item < run.second);
       const size_t middle = (2 * (item - run.first) + 1) * t, twice = 2 * (run.second - run.first);
       size_t thread = middle / twice;
       if (middle % twice == 0) {  // on the cut between thread - 1 and thread
@@ -228,19 +234,37 @@ class OrderedSchedule {
       run(pool, f);
       return;
     }
-    const auto solve = [&](size_t g, int thread) {
-      for (int p = start_[g]; p < start_[g + 1]; ++p) {
-        const std::atomic<uint32_t>& d = done_[static_cast<size_t>(before_[static_cast<size_t>(p)])];
-        spinUntil([&] { return d.load(std::memory_order_acquire) == epoch; }, kSweepWaitSpins);
+    for (Cursor& c : next_) c.at.store(0, std::memory_order_relaxed);
+    failed_.store(false, std::memory_order_relaxed);
+    pool.forBlocks(mine_.size(), [&](size_t own, int thread) {
+      // The next item of its own list once it is ready, else the next of another list that is (its
+      // thread is busy, or off the core: a loaded machine), else wait. Only ready items are taken,
+      // so whoever takes one solves it at once.
+      for (int idle = 0;;) {
+        bool left = false, took = false;
+        for (size_t k = 0; k < mine_.size() && !took; ++k) {
+          const size_t list = (own + k) % mine_.size();
+          std::atomic<size_t>& next = next_[list].at;
+          size_t at = next.load(std::memory_order_acquire);
+          if (at >= mine_[list].size()) continue;
+          left = true;
+          const size_t g = static_cast<size_t>(mine_[list][at]);
+          if (!ready(g, epoch)) continue;
+          took = true;  // or another thread did: look again at once
+          if (!next.compare_exchange_strong(at, at + 1, std::memory_order_acq_rel)) break;
+          try {
+            f(g, g + 1, thread);
+          } catch (...) {  // the items after it would wait for ever: all stop, the pool rethrows
+            failed_.store(true, std::memory_order_relaxed);
+            throw;
+          }
+          done_[g].store(epoch, std::memory_order_release);
+        }
+        if (!left || failed_.load(std::memory_order_relaxed)) return;
+        if (took) idle = 0;
+        else if (++idle < kSweepWaitSpins) spinPause();
+        else std::this_thread::yield();
       }
-      f(g, g + 1, thread);
-      done_[g].store(epoch, std::memory_order_release);
-    };
-    // Each list on its own thread: one thread taking two lists would wait in the first for the
-    // second's items (forBlocks gives each thread its own block first).
-    assert(mine_.size() == static_cast<size_t>(pool.threads()));
-    pool.forBlocks(mine_.size(), [&](size_t list, int thread) {
-      for (int g : mine_[list]) solve(static_cast<size_t>(g), thread);
     });
   }
 
@@ -251,6 +275,17 @@ class OrderedSchedule {
   std::vector<std::vector<int>> mine_;  // each thread's items, in order
   std::vector<std::atomic<uint32_t>> done_;  // the pass each item was last solved in
   uint32_t epoch_ = 0;
+  struct alignas(64) Cursor {  // a list's next item, on a line of its own
+    std::atomic<size_t> at{0};
+  };
+  std::vector<Cursor> next_;  // one a list
+  std::atomic<bool> failed_{false};  // an item threw in this pass
+
+  bool ready(size_t g, uint32_t epoch) const {
+    for (int p = start_[g]; p < start_[g + 1]; ++p)
+      if (done_[static_cast<size_t>(before_[static_cast<size_t>(p)])].load(std::memory_order_acquire) != epoch) return false;
+    return true;
+  }
 };
 
 }  // namespace substep

@@ -114,10 +114,9 @@ TEST(WorkerPool, ABusyKeepsTheWorkersAwakeBetweenJobs) {
 }
 
 // OrderedSchedule: random items over a few bodies (so that most items follow others), in runs of
-// three (which only say where each item's thread is): on any number of threads, pass after pass,
-// each body's items are solved in the items' order, each once. An item solved before its
-// predecessors are done would show in a body's list out of order (and, under the sanitizers, as
-// a race on it).
+// three (which only say which thread's list each item is on): on any number of threads, pass
+// after pass, each body's items are solved in the items' order, each once. An item solved before
+// its predecessors are done would show in a body's list out of order.
 TEST(OrderedSchedule, EachBodysItemsInTheirOrderOnAnyNumberOfThreads) {
   static constexpr size_t kItems = 600, kBodies = 40;
   std::mt19937 rng(7);
@@ -157,5 +156,34 @@ TEST(OrderedSchedule, EachBodysItemsInTheirOrderOnAnyNumberOfThreads) {
       for (size_t body = 0; body < kBodies; ++body)
         ASSERT_EQ(solved[body], serial[body]) << threads << " threads, pass " << pass << ", body " << body;
     }
+  }
+}
+
+// An item that throws: the pass stops (the items after it would wait for it for ever) and the
+// pool rethrows to the caller; the schedule runs again afterwards. Also an item that names a body
+// twice (it must not wait for itself).
+TEST(OrderedSchedule, AnItemThatThrowsIsRethrownAndNothingWaitsForIt) {
+  for (int threads : {1, 2, 3}) {
+    WorkerPool pool(threads);
+    OrderedSchedule schedule;
+    constexpr size_t kItems = 200;
+    schedule.build(
+        kItems, 10, pool.threads(),
+        [](size_t item, auto follow) {
+          follow(static_cast<int>(item % 10));
+          follow(static_cast<int>(item % 10));
+        },
+        [](size_t item) { return std::pair<size_t, size_t>(item, item + 1); });
+    std::atomic<int> calls{0};
+    auto throwing = [&](size_t first, size_t, int) {
+      calls.fetch_add(1);
+      if (first == 50) throw std::runtime_error("item 50");
+    };
+    EXPECT_THROW(schedule.run(pool, throwing), std::runtime_error) << threads << " threads";
+    EXPECT_LT(calls.load(), static_cast<int>(kItems)) << threads << " threads";
+    calls = 0;
+    auto counting = [&](size_t, size_t, int) { calls.fetch_add(1); };
+    schedule.run(pool, counting);
+    EXPECT_EQ(calls.load(), static_cast<int>(kItems)) << threads << " threads";
   }
 }

@@ -64,6 +64,7 @@ class HavokActualStepper final : public Stepper {
     // eight at a time in the runs of the step's order; the same numbers as island by island.
     // Without restitution and split impulses no contact row is stored: the groups are the rows.
     inLanes_ = !cs.laneGroups().empty();  // asked for by asksLaneGroups, granted by build()
+    c.stats.laneScheduled = inLanes_ && pool.threads() > 1;  // solvePart's lanesShared
     if (stableOnly || inLanes_) {
       solvePart(c, cs.whole(nb), stableOnly, parts_[0], nullptr, inLanes_ && pool.threads() > 1);
     } else if (pool.threads() == 1) {
@@ -151,7 +152,6 @@ class HavokActualStepper final : public Stepper {
       s.speculative.clear();
     });
     if (inLanes_) prepareLanes(c, ratio, invKappa);
-    c.stats.laneScheduled = lanesShared;
     if (lanesShared) {
       const std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
       const std::vector<int>& runs = cs.laneRunGroups();
