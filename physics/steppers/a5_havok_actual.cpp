@@ -64,9 +64,9 @@ class HavokActualStepper final : public Stepper {
     // eight at a time in the runs of the step's order; the same numbers as island by island.
     // Without restitution and split impulses no contact row is stored: the groups are the rows.
     inLanes_ = !cs.laneGroups().empty();  // asked for by asksLaneGroups, granted by build()
-    c.stats.laneScheduled = inLanes_ && pool.threads() > 1;  // solvePart's lanesShared
+    c.stats.laneScheduled = inLanes_ && pool.threads() > 1;  // the lane groups by schedule_
     if (stableOnly || inLanes_) {
-      solvePart(c, cs.whole(nb), stableOnly, parts_[0], nullptr, inLanes_ && pool.threads() > 1);
+      solvePart(c, cs.whole(nb), stableOnly, parts_[0], nullptr, c.stats.laneScheduled);
     } else if (pool.threads() == 1) {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly, parts_[0]);
     } else {
