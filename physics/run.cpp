@@ -16,13 +16,13 @@ using Clock = std::chrono::steady_clock;
 ContactDepths contactDepths(const World& world) {
   ContactDepths p;
   const State& s = world.state();
-  for (const ContactDef& c : world.constraints().contacts) {
+  world.constraints().eachContact([&](const ContactDef& c) {
     const double depth = -contactGap(c, s.bodies[static_cast<size_t>(c.a)].pose(), s.bodies[static_cast<size_t>(c.b)].pose());
-    if (!(depth > 0)) continue;
+    if (!(depth > 0)) return;
     p.deepest = std::max(p.deepest, depth);
     p.sumSquares += depth * depth;
     ++p.points;
-  }
+  });
   return p;
 }
 

@@ -2,6 +2,7 @@
 // numbers of one at a time, to the last bit, in the step's order (its runs) and by colours, warm
 // and cold, with joints re-formulated between sub-steps; and the AVX-512, AVX2 and baseline
 // kernels give the same numbers.
+#include "physics/run.h"
 #include "physics/scene_file.h"
 #include "physics/state_hash.h"
 #include "physics/steppers/soft_lanes.h"
@@ -100,6 +101,64 @@ TEST(Lanes, SameTrajectoryAsOneManifoldAtATime) {
         for (size_t k = 0; k < one.hashes.size(); ++k)
           ASSERT_EQ(one.hashes[k], eight.hashes[k]) << what << ", step " << k + 1;
       }
+  }
+}
+
+// With the contact rows deferred no ContactDef is stored (the lanes read the manifolds' points),
+// yet the contact points a run reports (penetration, the lab's depths) are the stored rows' to the
+// last bit: the soft step and A5 with pyramid.json's settings (its lane groups), lanes on and off
+// (which step alike: the tests above).
+TEST(Lanes, DeferredRowsReportTheSameContactPoints) {
+  const Scene s = scene("pyramid.json");
+  const auto settings = [&](Algorithm algorithm, bool lanes) {
+    SolverOverrides o = s.solver;  // a5, κ 0.85, warm, contact blocks
+    if (algorithm == Algorithm::Soft) o.set(&SolverSettings::algorithm, Algorithm::Soft);
+    o.set(&SolverSettings::lanes, lanes);
+    return resolve(o);
+  };
+  struct Point {
+    int a, b;
+    Vec3 localA, localB, localN, worldN, armA, armB;
+    double restitution, lastLambda;
+    bool worldFrame;
+  };
+  const auto points = [](const World& w) {
+    std::vector<Point> out;
+    w.constraints().eachContact([&](const ContactDef& c) {
+      out.push_back({c.a, c.b, c.localA, c.localB, c.localN, c.worldN, c.armA, c.armB, c.restitution, c.lastLambda,
+                     c.worldFrame});
+    });
+    return out;
+  };
+  for (const Algorithm algorithm : {Algorithm::Soft, Algorithm::A5}) {
+    const std::string what = algorithmName(algorithm);
+    World stored(s.model, settings(algorithm, false), s.initial), deferred(s.model, settings(algorithm, true), s.initial);
+    for (int k = 0; k < 40; ++k) {
+      ASSERT_TRUE(stored.step().finite) << what;
+      ASSERT_TRUE(deferred.step().finite) << what;
+    }
+    ASSERT_FALSE(stored.constraints().contactRowsDeferred()) << what;
+    ASSERT_TRUE(deferred.constraints().contactRowsDeferred()) << what;
+    EXPECT_TRUE(deferred.constraints().contacts.empty()) << what << ": deferred rows still stored their points";
+    const std::vector<Point> want = points(stored), got = points(deferred);
+    ASSERT_GT(want.size(), 1000u) << what;  // 210 boxes resting on one another
+    ASSERT_EQ(got.size(), want.size()) << what;
+    for (size_t k = 0; k < want.size(); ++k) {
+      const Point &p = got[k], &q = want[k];
+      // Deferred, the point's last λ is not known (storeImpulses wrote the step's over it).
+      ASSERT_TRUE(std::isnan(p.lastLambda) && std::isfinite(q.lastLambda)) << what << ", point " << k;
+      ASSERT_TRUE(p.a == q.a && p.b == q.b && p.localA == q.localA && p.localB == q.localB && p.localN == q.localN &&
+                  p.worldN == q.worldN && p.armA == q.armA && p.armB == q.armB && p.restitution == q.restitution &&
+                  p.worldFrame == q.worldFrame)
+          << what << ", point " << k;
+    }
+    ASSERT_GT(stored.maxPenetration(), 0) << what;
+    EXPECT_EQ(deferred.maxPenetration(), stored.maxPenetration()) << what;
+    const ContactDepths d = contactDepths(deferred), e = contactDepths(stored);
+    EXPECT_GT(e.points, 0) << what;
+    EXPECT_EQ(d.points, e.points) << what;
+    EXPECT_EQ(d.deepest, e.deepest) << what;
+    EXPECT_EQ(d.sumSquares, e.sumSquares) << what;
   }
 }
 

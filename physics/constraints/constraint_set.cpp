@@ -27,10 +27,27 @@ struct Share {
 
 }  // namespace
 
+void ConstraintSet::definePoint(const Manifold& m, const ManifoldPoint& p, bool worldFrame, ContactDef& c) {
+  c.a = m.a;
+  c.b = m.b;
+  c.localA = p.localA;
+  c.localB = p.localB;
+  c.localN = p.localN;
+  c.worldFrame = worldFrame;
+  c.worldN = p.worldN;
+  c.armA = p.armA;
+  c.armB = p.armB;
+  c.row = -1;
+  c.restitution = m.restitution;
+  c.approach = 0;  // recordApproach's
+  c.lastLambda = p.lambda;
+}
+
 void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manifolds, const std::vector<Pose>& poses,
                           const std::vector<BodyMass>& mass, const SolverSettings& settings, double h,
                           double applyScale) {
   model_ = &model;
+  built_ = &manifolds;
   slop_ = settings.slop;
   stableBlocks_ = settings.blockSolve;
   motorUnscaled_ = settings.motorUnscaled;
@@ -145,7 +162,8 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   resizeRewritten(frictions, nm, workers());  // every element written below
   // Manifold k's friction unit's, written below (finishAll numbers them so), or deferred never read.
   resizeRewritten(couplings, nm, workers());
-  resizeRewritten(contacts, static_cast<size_t>(manifoldPoint_[nm]), workers());  // every field written below
+  // Every field written below; deferred, none (eachContact defines them from the manifolds).
+  resizeRewritten(contacts, deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]), workers());
   const bool worldFrame = worldFrame_ = settings.contactFrame == ContactFrame::World;
   warm_ = settings.warmStart;
   exempt_ = settings.frictionExempt;
@@ -182,20 +200,12 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
       const Share share(m.count);
       for (int k = 0; k < m.count; ++k) {
         const ManifoldPoint& p = m.points[k];
-        ContactDef& c = contacts[static_cast<size_t>(manifoldPoint_[mk] + k)];
-        c.a = m.a;
-        c.b = m.b;
-        c.localA = p.localA;
-        c.localB = p.localB;
-        c.localN = p.localN;
-        c.worldFrame = worldFrame;
-        c.worldN = p.worldN;
-        c.armA = p.armA;
-        c.armB = p.armB;
-        c.row = manifoldRow_[mk] + k;
-        c.restitution = m.restitution;
-        c.approach = 0;  // recordApproach's
-        c.lastLambda = p.lambda;
+        // Deferred, no row reads a point's definition: the lanes read the point itself.
+        if (!deferred_) {
+          ContactDef& c = contacts[static_cast<size_t>(manifoldPoint_[mk] + k)];
+          definePoint(m, p, worldFrame, c);
+          c.row = manifoldRow_[mk] + k;
+        }
         f.localA += share(p.localA);  // the centroids
         f.localB += share(p.localB);
         f.armA += share(p.armA);
@@ -287,12 +297,14 @@ void ConstraintSet::formulateManifold(size_t mk, Row* r, FrictionCoupling& coupl
   const FrictionDef& f = frictions[mk];
   const Frame& A = frames_[static_cast<size_t>(f.a)];
   const Frame& B = frames_[static_cast<size_t>(f.b)];
-  const ContactDef* c = &contacts[static_cast<size_t>(manifoldPoint_[mk])];
   const int count = f.normalCount;
   for (int k = 0; k < count + 3; ++k) resetRowState(r[k]);  // the rest: formulated and finished below
   for (int k = 0; k < count; ++k) {
-    formulateContact(c[k], A, B, h_, slop_, r[k], false);
-    r[k].lambda = warm_ ? c[k].lastLambda : 0.0;
+    ContactDef defined;
+    const ContactDef& c = deferred_ ? defined : contacts[static_cast<size_t>(manifoldPoint_[mk] + k)];
+    if (deferred_) definePoint((*built_)[mk], (*built_)[mk].points[k], worldFrame_, defined);
+    formulateContact(c, A, B, h_, slop_, r[k], false);
+    r[k].lambda = warm_ ? c.lastLambda : 0.0;
     markApart(r[k], speculative_);
   }
   Row* fr = r + count;
@@ -322,14 +334,15 @@ void ConstraintSet::prefetchManifold(size_t k) const {
     prefetchBytes(&rows[static_cast<size_t>(f.firstNormal)], static_cast<size_t>(f.row + 3 - f.firstNormal) * sizeof(Row));
     return;
   }
-  const size_t first = static_cast<size_t>(manifoldPoint_[k]), last = static_cast<size_t>(manifoldPoint_[k + 1]);
-  prefetchBytes(&contacts[first], (last - first) * sizeof(ContactDef));
+  const Manifold& m = (*built_)[k];
+  prefetchBytes(m.points, static_cast<size_t>(m.count) * sizeof(ManifoldPoint));
   prefetchBytes(&frictions[k], sizeof(FrictionDef));
 }
 
 size_t ConstraintSet::manifoldBytes() const {
   if (!deferred_) return rows.size() * sizeof(Row);
-  return frictions.size() * sizeof(FrictionDef) + contacts.size() * sizeof(ContactDef);
+  const size_t points = manifoldPoint_.empty() ? 0 : static_cast<size_t>(manifoldPoint_.back());
+  return frictions.size() * sizeof(FrictionDef) + points * (deferred_ ? sizeof(ManifoldPoint) : sizeof(ContactDef));
 }
 
 uint64_t ConstraintSet::colourKey(int a, int b, const std::vector<BodyMass>& mass) {
@@ -754,8 +767,9 @@ void ConstraintSet::recordApproach(const Vec3* v, const Vec3* w) {
 
 double ConstraintSet::maxPenetration(const std::vector<Pose>& poses) const {
   double worst = 0;
-  for (const ContactDef& c : contacts)
+  eachContact([&](const ContactDef& c) {
     worst = std::max(worst, -contactGap(c, poses[static_cast<size_t>(c.a)], poses[static_cast<size_t>(c.b)]));
+  });
   return worst;
 }
 

@@ -12,6 +12,7 @@
 #include "physics/steppers/soft_lanes.h"
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace substep {
@@ -117,9 +118,10 @@ class ConstraintSet {
   void prefetchManifold(size_t k) const;
   size_t manifoldBytes() const;
   // What formulateManifold reads besides manifold k's FrictionDef, for a formulation elsewhere (the
-  // soft step's lanes): its points' definitions, the bodies' frames at the build's poses, the time
-  // step and slop β is for, and whether a point apart is speculative.
-  const ContactDef* manifoldContacts(size_t k) const { return &contacts[static_cast<size_t>(manifoldPoint_[k])]; }
+  // lanes): its points (in the manifolds build() was given, which they outlive), the bodies'
+  // frames at the build's poses, the time step and slop β is for, and whether a point apart is
+  // speculative.
+  const ManifoldPoint* manifoldPoints(size_t k) const { return (*built_)[k].points; }
   const Frame& frame(int body) const { return frames_[static_cast<size_t>(body)]; }
   double formulationStep() const { return h_; }
   double slop() const { return slop_; }
@@ -139,7 +141,9 @@ class ConstraintSet {
   std::vector<SolveUnit> units;
   std::vector<BlockData> blocks;  // of the stable and contact blocks
   std::vector<FrictionCoupling> couplings;  // of the Friction units (their SolveUnit::block): manifold k's is k
-  std::vector<ContactDef> contacts;    // one normal row per contact point
+  // One normal row per contact point; empty when the contact rows are deferred (then nothing in the
+  // step reads a point's definition, and eachContact defines them from the manifolds).
+  std::vector<ContactDef> contacts;
   std::vector<FrictionDef> frictions;  // three friction rows per manifold
   // The contacts (indices in `contacts`, in order) whose pair has restitution: the only ones
   // recordApproach and restitution read; on a pyramid, none.
@@ -166,6 +170,28 @@ class ConstraintSet {
 
   // The threads build() and re-formulations share their work out on (null: the caller's alone).
   void setPool(WorkerPool* pool) { pool_ = pool; }
+
+  // f(const ContactDef&) for every contact point of the last build(), in order: `contacts`, or
+  // with the rows deferred each point defined from its manifold (build() was given, which it
+  // reads) as build() would have stored it, but with no row (-1) and its last λ not known (NaN:
+  // storeImpulses has written the step's own over it). Its bodies, anchors and normal, what
+  // contactGap reads, are the same either way.
+  template <class F>
+  void eachContact(F f) const {
+    if (!deferred_) {
+      for (const ContactDef& c : contacts) f(c);
+      return;
+    }
+    ContactDef c;
+    for (const Manifold& m : *built_)
+      for (int q = 0; q < m.count; ++q) {
+        definePoint(m, m.points[q], worldFrame_, c);
+        c.lastLambda = std::numeric_limits<double>::quiet_NaN();
+        f(c);
+      }
+  }
+  // Point p of manifold m as a ContactDef (its row -1: the caller's to number).
+  static void definePoint(const Manifold& m, const ManifoldPoint& p, bool worldFrame, ContactDef& c);
 
   // Largest penetration of any contact point and largest joint error at `poses` [m].
   double maxPenetration(const std::vector<Pose>& poses) const;
@@ -209,6 +235,7 @@ class ConstraintSet {
   std::vector<int> manifoldRow_, manifoldPoint_;  // per manifold: its first row and first point; one past the last
   // What formulateManifold reads of the last build().
   bool deferAsked_ = false, deferred_ = false;
+  const std::vector<Manifold>* built_ = nullptr;  // build()'s manifolds
   const std::vector<BodyMass>* mass_ = nullptr;
   double h_ = 0, applyScale_ = 1;
   bool warm_ = false, exempt_ = true;

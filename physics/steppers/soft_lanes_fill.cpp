@@ -21,7 +21,7 @@ void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in)
     in.RA[i].x[l] = A.R.data()[i];
     in.RB[i].x[l] = B.R.data()[i];
   }
-  const ContactDef* c = cs.manifoldContacts(k);
+  const ManifoldPoint* c = cs.manifoldPoints(k);
   in.normals[l] = f.normalCount;
   for (int q = 0; q < f.normalCount; ++q) {
     ManifoldLanes::Point& p = in.point[q];
@@ -34,7 +34,7 @@ void gatherManifold(const ConstraintSet& cs, size_t k, int l, ManifoldLanes& in)
     } else {
       put(in.localN[q], l, c[q].localN);
     }
-    p.lastLambda.x[l] = c[q].lastLambda;
+    p.lastLambda.x[l] = c[q].lambda;
   }
   // Points the manifold lacks: zero (the kernel makes them zero rows whatever they hold).
   for (int q = f.normalCount; q < kMaxNormals; ++q) {
