@@ -107,7 +107,7 @@ class ConstraintSet {
   // build() stores it.
   void laneRow(const lanes::RigidGroup& g, int l, int q, Row& row) const;
   // The contact block a lane group's block index names: in `blocks`, or with the rows deferred,
-  // manifold `block`'s own.
+  // manifold `block`'s own (its K and last set: its K⁻¹ is the group's alone).
   BlockData& laneBlock(int block) {
     return deferred_ ? laneBlocks_[static_cast<size_t>(block)] : blocks[static_cast<size_t>(block)];
   }

@@ -84,12 +84,14 @@ void ConstraintSet::formulateGroup(const int* manifolds, int count, const lanes:
       couplings[k] = {g.g10.x[l], g.g20.x[l], g.g21.x[l]};
     }
     if (!blocksInLanes_ || fd.normalCount < 2) continue;
+    // Deferred, the block's only reader is the lanes' search past the sets they try themselves
+    // (searchContactBlock), which reads K and not K⁻¹ (the group holds that).
     BlockData& d = laneBlocks_[k];
     for (int col = 0; col < lanes::kMaxNormals; ++col)
-      for (int row = 0; row < lanes::kMaxNormals; ++row) {
-        d.K(row, col) = blocks.K[row][col].x[l];
-        d.invK(row, col) = g.invK[row][col].x[l];
-      }
+      for (int row = 0; row < lanes::kMaxNormals; ++row) d.K(row, col) = blocks.K[row][col].x[l];
+    if (!deferred_)
+      for (int col = 0; col < lanes::kMaxNormals; ++col)
+        for (int row = 0; row < lanes::kMaxNormals; ++row) d.invK(row, col) = g.invK[row][col].x[l];
   }
 }
 

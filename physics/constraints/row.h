@@ -88,7 +88,8 @@ struct SolveUnit {
 };
 
 struct BlockData {
-  // Not zero-initialised: ConstraintSet::finish writes both whole before any use.
+  // Not zero-initialised: ConstraintSet::finish writes both whole before any use (a deferred lane
+  // group's block, ConstraintSet::laneBlock, K alone: nothing reads its K⁻¹).
   Eigen::Matrix4d K;     // the block of Γ (unscaled M̌⁻¹)
   Eigen::Matrix4d invK;  // its inverse (contact blocks: of K regularised)
   int lastMask = -1;  // contact blocks: the proper active set that fitted last (bit i: row i pushes)

@@ -402,7 +402,7 @@ class HavokActualStepper final : public Stepper {
   }
   static void searchBlock(void* set, int block, int points, const double* lambda, const double* b, double* delta) {
     ConstraintSet& cs = *static_cast<ConstraintSet*>(set);
-    solveContactBlock(cs.laneBlock(block), points, lambda, b, delta);
+    searchContactBlock(cs.laneBlock(block), points, lambda, b, delta);
   }
 
   // The 'stable' parts of every joint (joints.h: unbounded rows), for JacobianRefresh::Stable.

@@ -91,8 +91,11 @@ bool solveSmall(double (&A)[4][4], double (&x)[4], int n) {
 //   λ + Δ >= 0,  w = KΔ - b >= 0,  (λ + Δ)ᵢ wᵢ = 0     (b = cBias β - cVel J̌v̌)
 // trying none pushing (nothing needs to), every point pushing (the precomputed inverse), then the
 // active set that fitted last time (it rarely changes from one sweep to the next), then every
-// smaller set by size.
+// smaller set by size (searchBlock).
 // k is the block's size, a template argument so that the common paths unroll.
+template <int k>
+void searchBlock(BlockData& d, const double* lam, const double* b, double* delta);
+
 template <int k>
 void solveContactBlock(BlockData& d, const double* lam, const double* b, double* delta) {
   bool idle = true;
@@ -115,6 +118,13 @@ void solveContactBlock(BlockData& d, const double* lam, const double* b, double*
     for (int i = 0; i < k; ++i) delta[i] = full[i];
     return;
   }
+  searchBlock<k>(d, lam, b, delta);
+}
+
+// The sets neither empty nor full: the last that fitted, then the others by size. Reads K and the
+// last set, not K⁻¹.
+template <int k>
+void searchBlock(BlockData& d, const double* lam, const double* b, double* delta) {
   // Rows outside the active set S drop to λ = 0 (Δ = -λ) and must not pull; rows in S solve
   // their block exactly and must stay >= 0.
   auto fits = [&](int mask) {
@@ -195,11 +205,11 @@ __attribute__((always_inline)) inline void solveBlockUnit(ConstraintSet& cs, con
 
 }  // namespace
 
-void solveContactBlock(BlockData& d, int points, const double* lambda, const double* b, double* delta) {
+void searchContactBlock(BlockData& d, int points, const double* lambda, const double* b, double* delta) {
   switch (points) {
-    case 2: solveContactBlock<2>(d, lambda, b, delta); break;
-    case 3: solveContactBlock<3>(d, lambda, b, delta); break;
-    default: solveContactBlock<4>(d, lambda, b, delta); break;
+    case 2: searchBlock<2>(d, lambda, b, delta); break;
+    case 3: searchBlock<3>(d, lambda, b, delta); break;
+    default: searchBlock<4>(d, lambda, b, delta); break;
   }
 }
 

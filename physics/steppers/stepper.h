@@ -250,10 +250,11 @@ class UnitLevels {
   ThreadMaxima change_;  // per thread: its largest change in the sweep
 };
 
-// A contact block of 2 to 4 points (BlockData): the increment Δ of its impulses λ for b = cBias β -
-// cVel J̌v̌, with λ + Δ >= 0 and KΔ - b >= 0 complementary to it (sweep's block solve; A5's lanes
-// ask it for the blocks where neither nothing nor everything pushing fits).
-void solveContactBlock(BlockData& d, int points, const double* lambda, const double* b, double* delta);
+// A contact block of 2 to 4 points (BlockData) where neither nothing nor everything pushing fits
+// (A5's lanes try both themselves): the increment Δ of its impulses λ for b = cBias β - cVel J̌v̌,
+// with λ + Δ >= 0 and KΔ - b >= 0 complementary to it, as sweep's block solve finds it past those
+// two tries. Reads the block's K and last set, not its K⁻¹.
+void searchContactBlock(BlockData& d, int points, const double* lambda, const double* b, double* delta);
 
 // Restitution (an extension: the report has none), after the velocity solve as Box2D does it:
 // every contact point that was closing faster than the threshold at the step's start and pushed
