@@ -449,11 +449,16 @@ class SoftStepper final : public Stepper {
   }
 
   // f(first, last, thread) over the lanes' groups: by the schedule, or run by run, each run's on
-  // the threads, the colours' overflow in order on this one.
+  // the threads, the colours' overflow in order on this one. On one thread the runs, which lie one
+  // after another, are one range: the same groups in the same order.
   template <class F>
   void eachSegment(StepContext& c, F f) {
     if (scheduled_) {
       schedule_.run(c.workers(), f);
+      return;
+    }
+    if (c.workers().threads() == 1) {
+      if (!segments_.empty()) f(segments_.front().first, segments_.back().last, 0);
       return;
     }
     for (const Segment& seg : segments_) {
