@@ -299,13 +299,19 @@ void ConstraintSet::formulateManifold(size_t mk, Row* r, FrictionCoupling& coupl
   const Frame& B = frames_[static_cast<size_t>(f.b)];
   const int count = f.normalCount;
   for (int k = 0; k < count + 3; ++k) resetRowState(r[k]);  // the rest: formulated and finished below
+  const auto point = [&](const ContactDef& c, Row& row) {
+    formulateContact(c, A, B, h_, slop_, row, false);
+    row.lambda = warm_ ? c.lastLambda : 0.0;
+    markApart(row, speculative_);
+  };
   for (int k = 0; k < count; ++k) {
-    ContactDef defined;
-    const ContactDef& c = deferred_ ? defined : contacts[static_cast<size_t>(manifoldPoint_[mk] + k)];
-    if (deferred_) definePoint((*built_)[mk], (*built_)[mk].points[k], worldFrame_, defined);
-    formulateContact(c, A, B, h_, slop_, r[k], false);
-    r[k].lambda = warm_ ? c.lastLambda : 0.0;
-    markApart(r[k], speculative_);
+    if (!deferred_) {
+      point(contacts[static_cast<size_t>(manifoldPoint_[mk] + k)], r[k]);
+      continue;
+    }
+    ContactDef c;  // deferred: not stored (build), defined here from the manifold's point
+    definePoint((*built_)[mk], (*built_)[mk].points[k], worldFrame_, c);
+    point(c, r[k]);
   }
   Row* fr = r + count;
   formulateFriction(f, A, B, fr, false);
@@ -342,7 +348,7 @@ void ConstraintSet::prefetchManifold(size_t k) const {
 size_t ConstraintSet::manifoldBytes() const {
   if (!deferred_) return rows.size() * sizeof(Row);
   const size_t points = manifoldPoint_.empty() ? 0 : static_cast<size_t>(manifoldPoint_.back());
-  return frictions.size() * sizeof(FrictionDef) + points * (deferred_ ? sizeof(ManifoldPoint) : sizeof(ContactDef));
+  return frictions.size() * sizeof(FrictionDef) + points * sizeof(ManifoldPoint);
 }
 
 uint64_t ConstraintSet::colourKey(int a, int b, const std::vector<BodyMass>& mass) {
