@@ -340,9 +340,13 @@ void ConstraintSet::prefetchManifold(size_t k) const {
     prefetchBytes(&rows[static_cast<size_t>(f.firstNormal)], static_cast<size_t>(f.row + 3 - f.firstNormal) * sizeof(Row));
     return;
   }
+  prefetchDefinition(k);
+}
+
+void ConstraintSet::prefetchDefinition(size_t k) const {
+  prefetchBytes(&frictions[k], sizeof(FrictionDef));
   const Manifold& m = (*built_)[k];
   prefetchBytes(m.points, static_cast<size_t>(m.count) * sizeof(ManifoldPoint));
-  prefetchBytes(&frictions[k], sizeof(FrictionDef));
 }
 
 size_t ConstraintSet::manifoldBytes() const {

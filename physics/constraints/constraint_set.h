@@ -236,6 +236,8 @@ class ConstraintSet {
   // What formulateManifold reads of the last build().
   bool deferAsked_ = false, deferred_ = false;
   const std::vector<Manifold>* built_ = nullptr;  // build()'s manifolds
+  // Asks the cache for what gatherManifold reads of manifold k: its FrictionDef and its points.
+  void prefetchDefinition(size_t k) const;
   const std::vector<BodyMass>* mass_ = nullptr;
   double h_ = 0, applyScale_ = 1;
   bool warm_ = false, exempt_ = true;

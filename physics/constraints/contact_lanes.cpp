@@ -146,16 +146,8 @@ void ConstraintSet::formulateLaneGroups() {
   // The groups take the manifolds in the runs' order, which no hardware prefetch follows: the
   // next group's definitions and points are asked for while this one is formulated.
   const auto prefetch = [&](size_t gi) {
-    for (int at = laneGroupStart_[gi]; at < laneGroupStart_[gi + 1]; ++at) {
-      const size_t k = static_cast<size_t>(order[static_cast<size_t>(at)]);
-      __builtin_prefetch(&frictions[k]);
-      __builtin_prefetch(reinterpret_cast<const char*>(&frictions[k]) + 64);
-      __builtin_prefetch(reinterpret_cast<const char*>(&frictions[k]) + 128);
-      const Manifold& m = (*built_)[k];
-      const char* c = reinterpret_cast<const char*>(m.points);
-      const char* end = reinterpret_cast<const char*>(m.points + m.count);
-      for (; c < end; c += 64) __builtin_prefetch(c);
-    }
+    for (int at = laneGroupStart_[gi]; at < laneGroupStart_[gi + 1]; ++at)
+      prefetchDefinition(static_cast<size_t>(order[static_cast<size_t>(at)]));
   };
   parallel(groups, 8, [&](size_t first, size_t last) {
     lanes::ManifoldLanes in;
