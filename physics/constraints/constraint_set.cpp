@@ -106,7 +106,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // Deferred (no contact row stored): the soft step's lanes formulate them, or A5's lane groups
   // hold them, where nothing but the sweeps reads a contact's row (no joints, no restitution,
   // warm started; A5's groups: contact blocks and no split impulses).
-  const bool a5Groups = laneGroupsAsked_ && lanesAsked_ && applyScale > 0 && contactBlocks_ && !settings.splitImpulse;
+  const bool a5Groups = laneGroupParts_ > 0 && lanesAsked_ && applyScale > 0 && contactBlocks_ && !settings.splitImpulse;
   deferred_ = (deferAsked_ || a5Groups) && model.joints.empty() && settings.warmStart && !bounces;
   resizeRewritten(rows, jointLambda_.size() + (deferred_ ? 0 : static_cast<size_t>(manifoldPoint_[nm]) + 3 * nm), workers());
   size_t next = 0;
@@ -181,10 +181,11 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
   // 20-level pyramid's 400 manifolds do, the 40-level one's 1640 do not): formulated in the runs'
   // order the rows are written out of order, and beyond L2 that cost more than the lanes save
   // (docs/benchmarks.md).
-  const bool grouped = inLanes && laneGroupsAsked_ && settings.warmStart && contactBlocks_ && model.joints.empty() &&
+  const bool grouped = inLanes && laneGroupParts_ > 0 && settings.warmStart && contactBlocks_ && model.joints.empty() &&
                        (groupsOnly || !LaneRuns::outgrowsL2(nm * sizeof(lanes::RigidGroup) / lanes::kLanes));
   if (!grouped) {
     laneGroups_.clear();
+    lanePartGroups_.clear();
     runCount_ = 0;
   }
   parallel(nm, 32, [&](size_t first, size_t last) {
@@ -228,6 +229,18 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
     }
     if (inLanes && !grouped) formulateManifoldsInLanes(first, last);
   });
+  // A5 solves island by island; the soft step, uncoloured, shares the islands out among its
+  // threads (coloured, the colours share the manifolds out).
+  // In lanes (SolverSettings::lanes) it goes by levels and reads no island.
+  const bool softLanes = settings.lanes && settings.contactOrder == ContactOrder::Manifold;
+  const bool softIslands =
+      settings.algorithm == Algorithm::Soft && !softLanes && colourStart.empty() && pool_ && pool_->threads() > 1;
+  // A5 in lanes sweeps every group at once on one thread; on more its stepper reads the islands'
+  // sizes, and its groups may be laid out by them.
+  const bool a5Islands = settings.islands && settings.algorithm == Algorithm::A5 && !(groupsOnly && workers().threads() == 1);
+  // Deferred, no unit or row is listed per island: the islands follow from the definitions alone,
+  // and can lay out the groups.
+  if (deferred_) findIslands(a5Islands || softIslands);
   if (grouped) formulateLaneGroups();
   bouncing.clear();
   for (size_t k = 0; k < nm && bounces; ++k)
@@ -280,15 +293,7 @@ void ConstraintSet::build(const Model& model, const std::vector<Manifold>& manif
         g.block[l] = static_cast<int>(k);
       }
     }
-  // A5 solves island by island; the soft step, uncoloured, shares the islands out among its
-  // threads (coloured, the colours share the manifolds out).
-  // In lanes (SolverSettings::lanes) it goes by levels and reads no island.
-  const bool softLanes = settings.lanes && settings.contactOrder == ContactOrder::Manifold;
-  const bool softIslands =
-      settings.algorithm == Algorithm::Soft && !softLanes && colourStart.empty() && pool_ && pool_->threads() > 1;
-  // A5 in lanes sweeps every group at once; on more threads its stepper reads the islands' sizes.
-  const bool a5Islands = settings.islands && settings.algorithm == Algorithm::A5 && !(groupsOnly && workers().threads() == 1);
-  findIslands(a5Islands || softIslands);
+  if (!deferred_) findIslands(a5Islands || softIslands);
 }
 
 void ConstraintSet::formulateManifold(size_t mk, Row* r, FrictionCoupling& coupling) const {
@@ -528,10 +533,10 @@ void ConstraintSet::findIslands(bool split) {
   islands_.back().rows = nr;
 }
 
-ConstraintPart ConstraintSet::island(int k) const {
+ConstraintPart ConstraintSet::islands(int first, int last) const {
   if (islands_.size() == 2) return whole(model_->bodies.size());
-  const Island& a = islands_[static_cast<size_t>(k)];
-  const Island& b = islands_[static_cast<size_t>(k) + 1];
+  const Island& a = islands_[static_cast<size_t>(first)];
+  const Island& b = islands_[static_cast<size_t>(last)];
   return {{islandUnits_.data() + a.units, 0, b.units - a.units},
           {islandRows_.data() + a.rows, 0, b.rows - a.rows},
           {islandBodies_.data() + a.bodies, 0, b.bodies - a.bodies},

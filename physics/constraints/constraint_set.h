@@ -99,10 +99,19 @@ class ConstraintSet {
   // split impulses, which read the rows after the sweeps, the groups are the contact rows' only
   // copy (contactRowsDeferred(): no contact row or unit stored, each manifold's block in
   // laneBlock(k), the impulses left in `impulses`); else the rows are stored beside them.
-  void askLaneGroups(bool ask) { laneGroupsAsked_ = ask; }
+  // Asked in `parts` > 1, with the rows deferred and the step more than one island, the groups are
+  // laid out in up to that many parts of whole islands (in their order, about as many manifolds
+  // each), every part's in its own runs: parts share no body, so each can be swept through the
+  // step on its own thread, with no wait on another (lanePart). 0: no groups asked.
+  void askLaneGroups(int parts) { laneGroupParts_ = parts; }
   std::vector<lanes::RigidGroup>& laneGroups() { return laneGroups_; }
   // Run r's groups (LaneRuns' runs): laneGroups()[laneRunGroups()[r] .. laneRunGroups()[r + 1]).
   const std::vector<int>& laneRunGroups() const { return laneRunGroups_; }
+  // The parts the groups were laid out in (1: the whole step's runs); part p's groups are
+  // laneGroups()[lanePartGroups()[p] .. lanePartGroups()[p + 1]), its islands lanePart(p).
+  int lanePartCount() const { return std::max(0, static_cast<int>(lanePartGroups_.size()) - 1); }
+  const std::vector<int>& lanePartGroups() const { return lanePartGroups_; }
+  ConstraintPart lanePart(int p) const;
   // Row q of lane l of a lane group (its manifold's normal rows, then its three friction rows) as
   // build() stores it.
   void laneRow(const lanes::RigidGroup& g, int l, int q, Row& row) const;
@@ -157,7 +166,8 @@ class ConstraintSet {
   // joints keep the step's order. Found for A5 (SolverSettings::islands; off: one island holds
   // everything) and for the soft step on more than one thread, uncoloured.
   int islandCount() const { return static_cast<int>(islands_.size()) - 1; }
-  ConstraintPart island(int k) const;  // a single island is whole()
+  ConstraintPart island(int k) const { return islands(k, k + 1); }  // a single island is whole()
+  ConstraintPart islands(int first, int last) const;  // islands [first, last) as one part
   ConstraintPart whole(size_t bodies) const;  // every unit, row, body (static ones too) and joint
   IndexRange islandManifolds(int k) const;    // island k's manifolds (in frictions), in the step's order
 
@@ -214,12 +224,16 @@ class ConstraintSet {
   void formulateGroup(const int* manifolds, int count, const lanes::Formulation& f, lanes::ManifoldLanes& in,
                       lanes::RigidGroup& g);
   lanes::Formulation laneFormulation() const;
-  bool lanesAsked_ = true, inLanes_ = false, blocksInLanes_ = false, laneGroupsAsked_ = false;
+  bool lanesAsked_ = true, inLanes_ = false, blocksInLanes_ = false;
+  int laneGroupParts_ = 0;  // askLaneGroups
   bool worldFrame_ = true;  // SolverSettings::contactFrame == World, for the lanes' formulation
-  LaneRuns laneRuns_;
+  std::vector<LaneRuns> laneRuns_;  // each part's
   std::vector<lanes::RigidGroup> laneGroups_;
-  std::vector<int> laneGroupStart_;  // each group's first place in laneRuns_.manifolds(); one past the last
+  std::vector<int> laneOrder_;       // the manifolds in the order of the parts' runs
+  std::vector<int> laneGroupStart_;  // each group's first place in laneOrder_; one past the last
   std::vector<int> laneRunGroups_;   // each run's first group; one past the last
+  std::vector<int> lanePartGroups_;  // each part's first group; one past the last
+  std::vector<int> lanePartIslands_;  // each part's first island; one past the last (one part: empty)
   int runCount_ = 0;
   std::vector<BlockData> laneBlocks_;  // per manifold: its contact block, until finishAll numbers them
 

@@ -4,12 +4,14 @@
 // operations), and copied into the rows, couplings and blocks formulateManifold and finishUnit
 // would have written: every number the same to the last bit (tests/test_lanes.cpp). What is not
 // arithmetic (bodies, flags) is set here, as formulateManifold sets it. Asked for lane groups
-// (askLaneGroups), the groups are the runs of the step's order and are kept for the sweep.
+// (askLaneGroups), the groups are the runs of the step's order, or of each part of whole islands,
+// and are kept for the sweep.
 #include "physics/constraints/constraint_set.h"
 #include "physics/step_arrays.h"
 #include "physics/steppers/soft_lanes_fill.h"
 
 #include <algorithm>
+#include <utility>
 
 namespace substep {
 
@@ -128,18 +130,55 @@ void ConstraintSet::formulateManifoldsInLanes(size_t first, size_t last) {
 }
 
 void ConstraintSet::formulateLaneGroups() {
-  laneRuns_.order(frictions, *mass_);
-  const std::vector<int>& order = laneRuns_.manifolds();
-  const std::vector<int>& start = laneRuns_.starts();
+  // The parts: whole islands in their order, a part closed once the manifolds so far reach its
+  // share of them. One part (asked so, or one island): the whole step, in the step's order.
+  const int islandsFound = islandCount();
+  lanePartIslands_.clear();
+  if (laneGroupParts_ > 1 && deferred_ && islands_.size() > 2) {  // deferred: build() found the islands first
+    const size_t total = frictions.size(), parts = static_cast<size_t>(laneGroupParts_);
+    lanePartIslands_.push_back(0);
+    const auto manifoldsBefore = [&](int island) { return static_cast<size_t>(islands_[static_cast<size_t>(island)].manifolds); };
+    for (int k = 1; k < islandsFound; ++k) {
+      const size_t done = manifoldsBefore(k);  // no part without a manifold, before or after the cut
+      if (done * parts >= lanePartIslands_.size() * total && done > manifoldsBefore(lanePartIslands_.back()) && done < total)
+        lanePartIslands_.push_back(k);
+    }
+    lanePartIslands_.push_back(islandsFound);
+    if (lanePartIslands_.size() == 2) lanePartIslands_.clear();  // one part: the step's order
+  }
+  const size_t parts = lanePartIslands_.empty() ? 1 : lanePartIslands_.size() - 1;
+  if (laneRuns_.size() < parts) laneRuns_.resize(parts);
+  // Part p's manifolds: islandManifolds_ from its first island's to its last's end.
+  const auto partList = [&](size_t p) -> std::pair<const int*, size_t> {
+    if (lanePartIslands_.empty()) return {nullptr, frictions.size()};
+    const Island& a = islands_[static_cast<size_t>(lanePartIslands_[p])];
+    const Island& b = islands_[static_cast<size_t>(lanePartIslands_[p + 1])];
+    return {islandManifolds_.data() + a.manifolds, static_cast<size_t>(b.manifolds - a.manifolds)};
+  };
+  parallel(parts, 1, [&](size_t first, size_t last) {
+    for (size_t p = first; p < last; ++p) laneRuns_[p].order(frictions, *mass_, partList(p).first, partList(p).second);
+  });
+  laneOrder_.clear();
   laneGroupStart_.clear();
   laneRunGroups_.clear();
-  for (size_t r = 0; r + 1 < start.size(); ++r) {
-    laneRunGroups_.push_back(static_cast<int>(laneGroupStart_.size()));
-    for (int at = start[r]; at < start[r + 1]; at += lanes::kLanes) laneGroupStart_.push_back(at);
+  lanePartGroups_.clear();
+  runCount_ = 0;
+  for (size_t p = 0; p < parts; ++p) {
+    const int* list = partList(p).first;
+    const std::vector<int>& start = laneRuns_[p].starts();
+    const int base = static_cast<int>(laneOrder_.size());
+    for (int at : laneRuns_[p].manifolds()) laneOrder_.push_back(list ? list[at] : at);
+    lanePartGroups_.push_back(static_cast<int>(laneGroupStart_.size()));
+    for (size_t r = 0; r + 1 < start.size(); ++r) {
+      laneRunGroups_.push_back(static_cast<int>(laneGroupStart_.size()));
+      for (int at = start[r]; at < start[r + 1]; at += lanes::kLanes) laneGroupStart_.push_back(base + at);
+    }
+    runCount_ += static_cast<int>(start.size()) - 1;
   }
-  laneGroupStart_.push_back(start.back());
+  laneGroupStart_.push_back(static_cast<int>(laneOrder_.size()));
   laneRunGroups_.push_back(static_cast<int>(laneGroupStart_.size()) - 1);
-  runCount_ = static_cast<int>(start.size()) - 1;
+  lanePartGroups_.push_back(static_cast<int>(laneGroupStart_.size()) - 1);
+  const std::vector<int>& order = laneOrder_;
   const size_t groups = laneGroupStart_.size() - 1;
   resizeRewritten(laneGroups_, groups, workers());
   const lanes::Formulation f = laneFormulation();
@@ -159,6 +198,11 @@ void ConstraintSet::formulateLaneGroups() {
       formulateGroup(order.data() + at, count, f, in, laneGroups_[gi]);
     }
   });
+}
+
+ConstraintPart ConstraintSet::lanePart(int p) const {
+  if (lanePartIslands_.empty()) return whole(model_->bodies.size());
+  return islands(lanePartIslands_[static_cast<size_t>(p)], lanePartIslands_[static_cast<size_t>(p) + 1]);
 }
 
 }  // namespace substep

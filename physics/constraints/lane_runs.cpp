@@ -16,8 +16,9 @@ bool LaneRuns::outgrowsL2(size_t bytes) {
   return bytes > l2;
 }
 
-void LaneRuns::order(const std::vector<FrictionDef>& frictions, const std::vector<BodyMass>& mass) {
-  const size_t count = frictions.size();
+void LaneRuns::order(const std::vector<FrictionDef>& frictions, const std::vector<BodyMass>& mass, const int* list,
+                     size_t count) {
+  const auto manifold = [&](size_t k) -> const FrictionDef& { return frictions[list ? static_cast<size_t>(list[k]) : k]; };
   // The runs follow from the manifolds' bodies in the step's order and which of those move
   // (storeMoving's test): a step with the same list as the last (a settled scene, whose pairs
   // stay) keeps last step's runs.
@@ -25,7 +26,7 @@ void LaneRuns::order(const std::vector<FrictionDef>& frictions, const std::vecto
     return static_cast<uint32_t>(mass[static_cast<size_t>(body)].invMass == 0 ? ~body : body);
   };
   runKey_.resize(count);
-  for (size_t k = 0; k < count; ++k) runKey_[k] = uint64_t{side(frictions[k].a)} << 32 | side(frictions[k].b);
+  for (size_t k = 0; k < count; ++k) runKey_[k] = uint64_t{side(manifold(k).a)} << 32 | side(manifold(k).b);
   // (No step's key is empty: the lanes are used only with manifolds.)
   if (runKey_ == lastRunKey_) return;
   runKey_.swap(lastRunKey_);
@@ -35,7 +36,7 @@ void LaneRuns::order(const std::vector<FrictionDef>& frictions, const std::vecto
   after_.assign(2 * count, -1);
   waiting_.assign(count, 0);
   for (size_t k = 0; k < count; ++k) {
-    const FrictionDef& f = frictions[k];
+    const FrictionDef& f = manifold(k);
     // storeMoving's test: the rows' M̌⁻¹ is zero for static and sleeping bodies alone.
     int prev[2] = {-1, -1};
     for (int side = 0; side < 2; ++side) {
@@ -44,7 +45,7 @@ void LaneRuns::order(const std::vector<FrictionDef>& frictions, const std::vecto
       prev[side] = lastOn_[body];
       if (prev[side] >= 0) {
         const size_t p = static_cast<size_t>(prev[side]);
-        after_[2 * p + (frictions[p].b == static_cast<int>(body))] = static_cast<int>(k);  // the slot of p's side
+        after_[2 * p + (manifold(p).b == static_cast<int>(body))] = static_cast<int>(k);  // the slot of p's side
       }
       lastOn_[body] = static_cast<int>(k);
     }

@@ -23,9 +23,15 @@ namespace substep {
 class LaneRuns {
  public:
   // The runs of the step's manifolds (their friction definitions, in the step's order), with
-  // `mass` telling which bodies move.
-  void order(const std::vector<FrictionDef>& frictions, const std::vector<BodyMass>& mass);
-  const std::vector<int>& manifolds() const { return runOrder_; }  // in the order of the runs
+  // `mass` telling which bodies move; or of the `count` manifolds `list` names, in its order (the
+  // manifolds of some islands: a sweep over those alone).
+  void order(const std::vector<FrictionDef>& frictions, const std::vector<BodyMass>& mass) {
+    order(frictions, mass, nullptr, frictions.size());
+  }
+  void order(const std::vector<FrictionDef>& frictions, const std::vector<BodyMass>& mass, const int* list, size_t count);
+  // In the order of the runs, each manifold's place in the list given (in frictions without one):
+  // what the runs are kept for is the bodies at those places, not which manifolds they are.
+  const std::vector<int>& manifolds() const { return runOrder_; }
   const std::vector<int>& starts() const { return runStart_; }     // run r: [starts[r], starts[r + 1])
 
   // A fill takes the manifolds in the runs' order, not in their rows' (or, formulating them,

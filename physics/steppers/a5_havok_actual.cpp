@@ -24,9 +24,18 @@
 #include "physics/steppers/soft_lanes_fill.h"
 #include "physics/steppers/stepper.h"
 
+#include <algorithm>
+
 namespace substep {
 
 namespace {
+
+// The lane groups a part of the step sweeps: [first, last) on the part's thread, or (scheduled)
+// all of them by the stepper's OrderedSchedule on every thread.
+struct GroupSpan {
+  size_t first = 0, last = 0;
+  bool scheduled = false;
+};
 
 class HavokActualStepper final : public Stepper {
  public:
@@ -57,16 +66,32 @@ class HavokActualStepper final : public Stepper {
     // its own, and static ones are only read (solves write back moving bodies alone). An island
     // too large for one thread (a pyramid, a heap) is shared out itself, unit by unit.
     WorkerPool& pool = c.workers();
-    parts_.resize(static_cast<size_t>(pool.threads()));
-    for (PartScratch& s : parts_) s.residual = 0;
-    // In lanes (SolverSettings::lanes), on one thread: warm, with the contact rows held (no joints)
-    // and a manifold's normals a block (or one single row), the whole step at once, its manifolds
-    // eight at a time in the runs of the step's order; the same numbers as island by island.
-    // Without restitution and split impulses no contact row is stored: the groups are the rows.
+    // In lanes (SolverSettings::lanes): warm, with the contact rows held (no joints) and a
+    // manifold's normals a block (or one single row), the whole step at once, its manifolds eight
+    // at a time in the runs of the step's order; the same numbers as island by island. Without
+    // restitution and split impulses no contact row is stored: the groups are the rows. On more
+    // threads, the whole step's groups by schedule_, or the groups of each part of whole islands
+    // (a pile) through every sub-step on one thread.
     inLanes_ = !cs.laneGroups().empty();  // asked for by asksLaneGroups, granted by build()
-    c.stats.laneScheduled = inLanes_ && pool.threads() > 1;  // the lane groups by schedule_
-    if (stableOnly || inLanes_) {
-      solvePart(c, cs.whole(nb), stableOnly, parts_[0], nullptr, c.stats.laneScheduled);
+    const int laneParts = inLanes_ ? cs.lanePartCount() : 0;
+    c.stats.laneParts = laneParts;
+    c.stats.laneScheduled = inLanes_ && pool.threads() > 1 && laneParts == 1;
+    parts_.resize(static_cast<size_t>(std::max(pool.threads(), laneParts)));
+    for (PartScratch& s : parts_) {
+      s.residual = 0;
+      s.targets.clear();
+      s.speculative.clear();
+    }
+    if (inLanes_) prepareLanes(c);  // lists the lanes' refreshed rows in parts_
+    if (stableOnly || laneParts == 1) {
+      const GroupSpan all{0, cs.laneGroups().size(), c.stats.laneScheduled};
+      solvePart(c, cs.whole(nb), stableOnly, parts_[0], nullptr, all);
+    } else if (inLanes_) {
+      const std::vector<int>& first = cs.lanePartGroups();
+      pool.forBlocks(static_cast<size_t>(laneParts), [&](size_t p, int) {
+        const GroupSpan mine{static_cast<size_t>(first[p]), static_cast<size_t>(first[p + 1]), false};
+        solvePart(c, cs.lanePart(static_cast<int>(p)), stableOnly, parts_[p], nullptr, mine);
+      });
     } else if (pool.threads() == 1) {
       for (int k = 0; k < cs.islandCount(); ++k) solvePart(c, cs.island(k), stableOnly, parts_[0]);
     } else {
@@ -100,12 +125,14 @@ class HavokActualStepper final : public Stepper {
 
   void stepCoordinates(StepContext& c) override { stepCoordinatesSubStepped(c, RotationRule::Summed); }
   // build() grants the groups where the rows allow (warm, contact blocks, no joints; within L2
-  // while the rows are stored beside them). On more threads, only while the last step was mostly
-  // one island: the groups then go by OrderedSchedule, a wait for each group's predecessors, which
-  // costs less than the units' levels on one large island (a pyramid) but more than islands taken
-  // whole by each thread where there are many (a pile) (docs/benchmarks.md).
-  bool asksLaneGroups(const SolverSettings& st, int threads) const override {
-    return st.lanes && (threads == 1 || oneLargeIsland_);
+  // while the rows are stored beside them). On more threads, while the last step was mostly one
+  // island, the whole step's: they then go by OrderedSchedule, a wait for each group's
+  // predecessors, which costs less than the units' levels on one large island (a pyramid). Else
+  // (a pile) in parts of whole islands, each part's groups swept on one thread with no wait:
+  // kLanePartsAThread a thread, so that a thread done with its own takes what is left of another's.
+  int asksLaneGroups(const SolverSettings& st, int threads) const override {
+    if (!st.lanes) return 0;
+    return threads == 1 || oneLargeIsland_ ? 1 : kLanePartsAThread * threads;
   }
 
  private:
@@ -124,10 +151,11 @@ class HavokActualStepper final : public Stepper {
   // With `levels` (built for this part), the part is shared out among the threads: its sweeps by
   // the levels, its passes over rows and bodies in blocks, the rows it refreshes listed in the
   // scratch of the thread that found them (parts_[thread]). Else all on this thread, in `scratch`.
+  // In lanes, the groups in `groups` (scheduled: the sweeps by OrderedSchedule and the rest as
+  // with levels), their rows listed by prepareLanes.
   void solvePart(StepContext& c, const ConstraintPart& part, bool stableOnly, PartScratch& scratch,
-                 UnitLevels* levels = nullptr, bool lanesShared = false) {
-    // lanesShared: in lanes on more threads, the sweeps by OrderedSchedule and the rest as with levels.
-    const bool shared = levels != nullptr || lanesShared;
+                 UnitLevels* levels = nullptr, GroupSpan groups = {}) {
+    const bool shared = levels != nullptr || groups.scheduled;
     // f(row, the scratch that lists it) for the part's rows, f(body) for its bodies.
     const auto eachRow = [&](auto f) {
       eachIndex(c, part.rows, shared, [&](size_t k, int thread) { f(k, shared ? parts_[static_cast<size_t>(thread)] : scratch); });
@@ -147,12 +175,12 @@ class HavokActualStepper final : public Stepper {
     const size_t nb = c.bodies();
     // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
     // their bias back each sub-step are listed with what they need.
-    eachList([](PartScratch& s) {
-      s.targets.clear();
-      s.speculative.clear();
-    });
-    if (inLanes_) prepareLanes(c, ratio, invKappa);
-    if (lanesShared) {
+    if (!inLanes_)
+      eachList([](PartScratch& s) {
+        s.targets.clear();
+        s.speculative.clear();
+      });
+    if (groups.scheduled) {
       const std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
       const std::vector<int>& runs = cs.laneRunGroups();
       size_t r = 0;  // the run of the group asked for (asked in order)
@@ -182,7 +210,7 @@ class HavokActualStepper final : public Stepper {
         // the bodies' part of the warm start as for the stored rows (a part without rows).
         startSubStepImpulses(c, j, ConstraintPart{{}, {}, part.bodies, {}});
         lanes::RigidGroup* g = cs.laneGroups().data();
-        passOverGroups(c, [&](size_t first, size_t last, int) {
+        passOverGroups(c, groups, [&](size_t first, size_t last, int) {
           lanes::kernel().warmRigid(g, first, last, c.v.data()->data(), c.w.data()->data());
         });
       } else {
@@ -208,7 +236,7 @@ class HavokActualStepper final : public Stepper {
       for (int i = 0; i < m && (inLanes_ || part.units.count > 0); ++i) {
         if (stableOnly) predictStableRows(c);
         const bool last = j + 1 == n && i + 1 == m;  // the step reports its last sweep's residual
-        const double change = inLanes_ ? sweepLanes(c, last)
+        const double change = inLanes_ ? sweepLanes(c, groups, last)
                               : levels ? levels->sweep(cs, c.v, c.w, SweepScales{}, last, c.workers())
                                        : sweep(cs, part.units, c.v, c.w, SweepScales{}, last);
         if (last) scratch.residual = std::max(scratch.residual, change);
@@ -238,7 +266,7 @@ class HavokActualStepper final : public Stepper {
         }
       }
     }
-    if (inLanes_) emptyLanes(c, kappa);
+    if (inLanes_) emptyLanes(c, groups, kappa);  // before the rows' λ̄ = λ/κ is undone below
     eachRow([&](size_t q, PartScratch&) {
       Row& r = cs.rows[q];
       if (!(r.velocityTarget && st.motorUnscaled)) r.lambda *= kappa;  // kept as λ, for warm starting and overlays
@@ -271,12 +299,14 @@ class HavokActualStepper final : public Stepper {
   // λ̄ = λ/κ, the same operations. The rows refreshed between sub-steps get their bias's lane:
   // stored rows through biasLane_ (per contact row), deferred ones listed here from the lanes
   // before the scaling, as the stored rows' pass lists them (a copy of each, laneRows_, for J̌).
-  void prepareLanes(StepContext& c, double ratio, double invKappa) {
+  void prepareLanes(StepContext& c) {
     ConstraintSet& cs = *c.constraints;
+    const double ratio = c.settings->tau / c.settings->kappa, invKappa = 1 / c.settings->kappa;  // as solvePart's
     std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
     c.stats.laneRuns = cs.laneRunCount();
     c.stats.laneGroups = static_cast<int>(groups.size());
     const bool deferred = cs.contactRowsDeferred();
+    if (deferred) resizeRewritten(cs.impulses, cs.frictions.size(), c.workers());  // for emptyLanes
     if (deferred) listLaneRows(c, ratio);
     else biasLane_.assign(cs.rows.size() - static_cast<size_t>(cs.contactFirstRow), nullptr);
     const size_t rowBase = static_cast<size_t>(cs.contactFirstRow);
@@ -320,13 +350,18 @@ class HavokActualStepper final : public Stepper {
         for (int i = 0; i < 3 && targets; ++i) laneRefs_.push_back({&g, l, g.points[l] + i, &g.friction[i].bias.x[l]});
       }
     laneRows_.resize(laneRefs_.size());  // before any is listed: the lists point into it
-    // A share in each thread's lists: on more threads the refreshes go on the threads, each
-    // thread its own lists.
+    // In parts of whole islands, each in its part's lists; else a share in each thread's lists:
+    // on more threads the refreshes go on the threads, each thread its own lists.
+    const std::vector<int>& partGroups = cs.lanePartGroups();
+    const bool inParts = partGroups.size() > 2;
+    const lanes::RigidGroup* first = cs.laneGroups().data();
     const size_t lists = parts_.size(), count = laneRefs_.size();
+    size_t part = 0;
     for (size_t k = 0; k < count; ++k) {
       const LaneRef& ref = laneRefs_[k];
       cs.laneRow(*ref.g, ref.l, ref.q, laneRows_[k]);
-      listRefreshed(laneRows_[k], ref.bias, false, ratio, parts_[k * lists / count]);
+      while (inParts && ref.g - first >= partGroups[part + 1]) ++part;
+      listRefreshed(laneRows_[k], ref.bias, false, ratio, parts_[inParts ? part : k * lists / count]);
     }
   }
 
@@ -340,13 +375,12 @@ class HavokActualStepper final : public Stepper {
     }
   }
 
-  // The lanes' λ and pushed back to the rows, as the sweeps left them; with the rows deferred,
-  // each manifold's impulses (λ = κλ̄, as the rows keep them) for storeImpulses.
-  void emptyLanes(StepContext& c, double kappa) {
+  // The span's lanes' λ and pushed back to the rows, as the sweeps left them; with the rows
+  // deferred, each manifold's impulses (λ = κλ̄, as the rows keep them) for storeImpulses.
+  void emptyLanes(StepContext& c, const GroupSpan& groups, double kappa) {
     ConstraintSet& cs = *c.constraints;
     const bool deferred = cs.contactRowsDeferred();
-    if (deferred) resizeRewritten(cs.impulses, cs.frictions.size(), c.workers());
-    eachGroup(c, [&](lanes::RigidGroup& g) {
+    const auto empty = [&](lanes::RigidGroup& g) {
       if (!deferred) {
         eachLaneRow(cs, g, [&](size_t row, const lanes::RigidRowLanes& r, int l) {
           cs.rows[row].lambda = r.lambda.x[l];
@@ -363,21 +397,25 @@ class HavokActualStepper final : public Stepper {
                                            f[1].lambda.x[l] * kappa, lanes::laneVector(f[1].lin, l));
         to.twist = f[2].lambda.x[l] * kappa;
       }
-    });
+    };
+    if (groups.scheduled) eachGroup(c, empty);
+    else std::for_each(cs.laneGroups().begin() + static_cast<ptrdiff_t>(groups.first),
+                       cs.laneGroups().begin() + static_cast<ptrdiff_t>(groups.last), empty);
   }
 
   // One sweep in lanes, in the units' order: every manifold's friction, then every block (split
   // order, warm), or each manifold's block and then its friction (manifold order).
-  double sweepLanes(StepContext& c, bool measure) {
+  double sweepLanes(StepContext& c, const GroupSpan& groups, bool measure) {
     const lanes::Kernel& k = lanes::kernel();
     double* v = c.v.data()->data();
     double* w = c.w.data()->data();
     const lanes::BlockFallback fallback{&searchBlock, c.constraints};
     lanes::RigidGroup* g = c.constraints->laneGroups().data();
-    laneChange_.reset(c.workers().threads());
+    double change = 0;  // unscheduled: the part's own, on its thread
+    if (groups.scheduled) laneChange_.reset(c.workers().threads());
     const auto pass = [&](lanes::RigidPhase phase) {
-      passOverGroups(c, [&](size_t first, size_t last, int t) {
-        double& mine = laneChange_.of(t);
+      passOverGroups(c, groups, [&](size_t first, size_t last, int t) {
+        double& mine = groups.scheduled ? laneChange_.of(t) : change;
         mine = std::max(mine, k.solveRigid(g, first, last, v, w, phase, measure, fallback));
       });
     };
@@ -387,18 +425,17 @@ class HavokActualStepper final : public Stepper {
       pass(lanes::RigidPhase::Friction);
       pass(lanes::RigidPhase::Blocks);
     }
-    return laneChange_.largest();
+    return groups.scheduled ? laneChange_.largest() : change;
   }
 
-  // f(first, last, thread) over the lane groups in order: on one thread all at once; on more,
-  // group by group on every thread (OrderedSchedule), each group once the groups before it on its
-  // moving bodies are done, so that each body's rows are solved in the same order on any number
-  // of threads.
+  // f(first, last, thread) over the span's lane groups in order: all at once on this thread; or
+  // scheduled, group by group on every thread (OrderedSchedule), each group once the groups
+  // before it on its moving bodies are done, so that each body's rows are solved in the same
+  // order on any number of threads.
   template <class F>
-  void passOverGroups(StepContext& c, F f) {
-    WorkerPool& pool = c.workers();
-    if (pool.threads() == 1) f(0, c.constraints->laneGroups().size(), 0);
-    else schedule_.run(pool, f);
+  void passOverGroups(StepContext& c, const GroupSpan& groups, F f) {
+    if (groups.scheduled) schedule_.run(c.workers(), f);
+    else f(groups.first, groups.last, 0);
   }
   static void searchBlock(void* set, int block, int points, const double* lambda, const double* b, double* delta) {
     ConstraintSet& cs = *static_cast<ConstraintSet*>(set);
@@ -454,6 +491,7 @@ class HavokActualStepper final : public Stepper {
   // Islands of fewer units go to one thread whole: on the 40-level pyramid's 3300 units, the
   // threads' waits for each other already cost about what sharing the sweeps saves.
   static constexpr int kLevelled = 2048;
+  static constexpr int kLanePartsAThread = 4;
   bool inLanes_ = false;
   bool oneLargeIsland_ = false;  // the last step's largest island held half its manifolds or more
   OrderedSchedule schedule_;  // the lane groups on more threads

@@ -29,6 +29,7 @@ struct StepStats {
   int laneRuns = 0;        // soft, a5: the runs its manifolds were solved in, eight at a time (0: one at a time)
   int laneGroups = 0;      // soft, a5: the groups of eight of those runs (a group's lanes not in use cost as much)
   bool laneScheduled = false;  // soft, a5: the groups went by OrderedSchedule on the threads, not run by run
+  int laneParts = 0;       // a5: parts of whole islands its groups were laid out in, each swept on one thread (1: the whole step)
 };
 
 // What a stepper works on during one step. The world fills it in s1/s2.
@@ -84,8 +85,9 @@ class Stepper {
   // (ConstraintSet::askDeferredContactRows).
   virtual bool formulatesContactRows(const SolverSettings&) const { return false; }
   // Whether, under these settings and on this many threads, it sweeps the contacts in the lanes
-  // ConstraintSet::build lays out for it (ConstraintSet::askLaneGroups).
-  virtual bool asksLaneGroups(const SolverSettings&, int /*threads*/) const { return false; }
+  // ConstraintSet::build lays out for it, and in how many parts of whole islands at most
+  // (ConstraintSet::askLaneGroups: 0 none, 1 the whole step's).
+  virtual int asksLaneGroups(const SolverSettings&, int /*threads*/) const { return 0; }
 };
 
 std::unique_ptr<Stepper> makeStepper(Algorithm a);
