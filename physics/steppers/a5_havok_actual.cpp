@@ -25,6 +25,7 @@
 #include "physics/steppers/stepper.h"
 
 #include <algorithm>
+#include <initializer_list>
 
 namespace substep {
 
@@ -51,13 +52,17 @@ class HavokActualStepper final : public Stepper {
     c.rowsHeld = cs.joints.empty();  // only joint rows are re-formulated between sub-steps
 
     splitPositionErrors(c);
-    sumV_.assign(nb, Vec3::Zero());
-    sumW_.assign(nb, Vec3::Zero());
-    rawV_.assign(nb, Vec3::Zero());
-    rawW_.assign(nb, Vec3::Zero());
-    beginSubSteps(c);
+    // Sized here; each body's sums zeroed, its sub-steps begun and ŵ¹ = v̌⁰ + ext (š¹ = 0) by its
+    // block on the threads, not on the calling thread alone (as the soft step does).
+    for (std::vector<Vec3>* sums : {&sumV_, &sumW_, &rawV_, &rawW_}) resizeRewritten(*sums, nb, c.workers());
+    sizeSubSteps(c);
     if (stableOnly) collectStableRows(c);
-    addExternal(c, dt);  // ŵ¹ = v̌⁰ + ext (š¹ = 0)
+    eachBodyBlock(c, [&](size_t first, size_t last) {
+      for (std::vector<Vec3>* sums : {&sumV_, &sumW_, &rawV_, &rawW_})
+        std::fill(sums->begin() + static_cast<ptrdiff_t>(first), sums->begin() + static_cast<ptrdiff_t>(last), Vec3::Zero());
+      beginSubSteps(c, first, last);
+      addExternal(c, dt, first, last);
+    });
     // Islands share no body and no row, so each can go through all n sub-steps on its own, its
     // rows in cache: the same arithmetic in the same order within each island, so the same
     // numbers as all at once. The stable-row prediction works on every body at once: one part.
@@ -349,17 +354,22 @@ class HavokActualStepper final : public Stepper {
           if (apartAndSpeculative(g.normal[q].bias.x[l], speculative)) laneRefs_.push_back({&g, l, q, &g.normal[q].bias.x[l]});
         for (int i = 0; i < 3 && targets; ++i) laneRefs_.push_back({&g, l, g.points[l] + i, &g.friction[i].bias.x[l]});
       }
-    laneRows_.resize(laneRefs_.size());  // before any is listed: the lists point into it
+    // The copies on the threads (a collapsing pyramid has thousands of points apart), before any
+    // is listed: the lists point into them.
+    const size_t count = laneRefs_.size();
+    laneRows_.resize(count);
+    c.workers().forRange(count, 256, [&](size_t from, size_t to, int) {
+      for (size_t k = from; k < to; ++k) cs.laneRow(*laneRefs_[k].g, laneRefs_[k].l, laneRefs_[k].q, laneRows_[k]);
+    });
     // In parts of whole islands, each in its part's lists; else a share in each thread's lists:
     // on more threads the refreshes go on the threads, each thread its own lists.
     const std::vector<int>& partGroups = cs.lanePartGroups();
     const bool inParts = partGroups.size() > 2;
     const lanes::RigidGroup* first = cs.laneGroups().data();
-    const size_t lists = parts_.size(), count = laneRefs_.size();
+    const size_t lists = parts_.size();
     size_t part = 0;
     for (size_t k = 0; k < count; ++k) {
       const LaneRef& ref = laneRefs_[k];
-      cs.laneRow(*ref.g, ref.l, ref.q, laneRows_[k]);
       while (inParts && ref.g - first >= partGroups[part + 1]) ++part;
       listRefreshed(laneRows_[k], ref.bias, false, ratio, parts_[inParts ? part : k * lists / count]);
     }
