@@ -156,7 +156,10 @@ void ConstraintSet::formulateLaneGroups() {
     return {islandManifolds_.data() + a.manifolds, static_cast<size_t>(b.manifolds - a.manifolds)};
   };
   parallel(parts, 1, [&](size_t first, size_t last) {
-    for (size_t p = first; p < last; ++p) laneRuns_[p].order(frictions, *mass_, partList(p).first, partList(p).second);
+    for (size_t p = first; p < last; ++p) {
+      const auto [list, count] = partList(p);
+      laneRuns_[p].order(frictions, *mass_, list, count);
+    }
   });
   laneOrder_.clear();
   laneGroupStart_.clear();

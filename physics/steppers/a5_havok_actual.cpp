@@ -84,6 +84,7 @@ class HavokActualStepper final : public Stepper {
     parts_.resize(static_cast<size_t>(std::max(pool.threads(), laneParts)));
     for (PartScratch& s : parts_) {
       s.residual = 0;
+      if (!inLanes_) continue;  // else solvePart clears the lists it fills
       s.targets.clear();
       s.speculative.clear();
     }
