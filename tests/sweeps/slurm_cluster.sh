@@ -8,11 +8,15 @@
 
 SLURM_CLUSTER_PIDS=()
 
-# A TCP port on 127.0.0.1 that nothing listens on (bash's /dev/tcp: a refused connection).
+# A TCP port on 127.0.0.1 that nothing listens on (bash's /dev/tcp: a refused connection), taken
+# below the kernel's ephemeral range: a port in that range can be any outgoing connection's local
+# port a moment later (the browser and load tests run beside this one), and slurmd's bind fails.
 slurm_cluster_free_port() {
-  local port
+  local port low=32768 high
+  read -r low high </proc/sys/net/ipv4/ip_local_port_range 2>/dev/null || true
+  ((low > 12000)) || low=32768
   for _ in $(seq 200); do
-    port=$((20000 + RANDOM % 40000))
+    port=$((10000 + RANDOM % (low - 10000)))
     if ! (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null; then
       echo "$port"
       return 0
@@ -22,7 +26,21 @@ slurm_cluster_free_port() {
   return 1
 }
 
+# Starts the cluster; where a daemon could not bind its port (taken between the probe and the
+# bind), stops what it started and tries again on other ports, three times at most.
 slurm_cluster_start() {
+  local dir=$1 attempt
+  for attempt in 1 2 3; do
+    slurm_cluster_try "$dir" && return 0
+    grep -qs "Address already in use" "$dir"/log/*.log "$dir"/log/*.out || return 1
+    echo "slurm_cluster_start: a port was taken; attempt $attempt of 3 failed, trying other ports" >&2
+    slurm_cluster_stop
+    rm -rf "${dir:?}"/{spool,state,log,run,munge.key,slurm.conf}
+  done
+  return 1
+}
+
+slurm_cluster_try() {
   local dir=$1 user host cpus ctld_port slurmd_port i
   mkdir -p "$dir"/{spool,state,log,run}
   dir=$(cd "$dir" && pwd)
