@@ -125,6 +125,59 @@ TEST(Narrowphase, BoxOnBoxKeepsTheOverlapOfTheFaces) {
   }
 }
 
+// A box resting on a box, both turned a little and A at random about the normal, from 2 cm into
+// each other to 2 cm apart: the faces clipped in the reference box's frame give the corners that
+// the general clipping (clipFeatures) gives from the faces' world corners, in its order,
+// whichever box is the reference and however many corners the overlap has.
+TEST(Narrowphase, BoxFacesClippedInTheirFrameAsTheGeneralClipping) {
+  uint64_t seed = 17;
+  auto uniform = [&] { return unitRandom(seed); };
+  auto tilt = [&] {  // 0.5 to 7 degrees about a random axis
+    const Vec3 axis(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5);
+    return rot((0.5 + 6.5 * uniform()) * M_PI / 180, axis);
+  };
+  const double margin = 0.02;
+  int compared = 0, refA = 0, refB = 0, many = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    const Shape a = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
+    const Shape b = box(0.05 + uniform(), 0.05 + uniform(), 0.05 + uniform());
+    const Vec3 hA = a.halfExtents, hB = b.halfExtents;
+    const Quat base = rot(2 * M_PI * uniform(), Vec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5));
+    const Pose pb{Vec3(uniform(), uniform(), uniform()), base * tilt()};
+    const Quat spin = rot(2 * M_PI * uniform(), Vec3::UnitY());  // A turned about B's normal
+    const Vec3 along = base * Vec3((uniform() - 0.5) * 2 * hB.x(), hB.y() + hA.y() + (uniform() - 0.5) * 0.04,
+                                   (uniform() - 0.5) * 2 * hB.z());
+    const Pose pa{pb.p + along, base * spin * tilt()};
+    Vec3 n;
+    if (boxBoxGap(hA, pa, hB, pb, n) > margin) continue;
+    ContactPatch ours, theirs;
+    if (!boxFacesClipped(hA, pa, hB, pb, n, margin, ours)) continue;  // an edge or a corner
+    const Feature fA = supportingFeature(a, pa, -n), fB = supportingFeature(b, pb, n);
+    ASSERT_EQ(fA.count, 4) << "trial " << trial;
+    ASSERT_EQ(fB.count, 4) << "trial " << trial;
+    const auto facing = [&](const Feature& f) {
+      return std::abs((f.p[1] - f.p[0]).cross(f.p[2] - f.p[1]).normalized().dot(n));
+    };
+    const bool refIsB = facing(fB) >= facing(fA);
+    clipFeatures(refIsB ? fB : fA, refIsB ? fA : fB, refIsB, n, margin, theirs);
+    ++compared;
+    ++(refIsB ? refB : refA);
+    many += ours.count > 4;
+    ASSERT_EQ(ours.count, theirs.count) << "trial " << trial;
+    for (int i = 0; i < ours.count; ++i) {  // in the same order: the order the solver takes them in
+      EXPECT_LT((ours.p[i].pA - theirs.p[i].pA).norm(), 1e-9) << "trial " << trial << " corner " << i;
+      EXPECT_LT((ours.p[i].pB - theirs.p[i].pB).norm(), 1e-9) << "trial " << trial << " corner " << i;
+      EXPECT_NEAR(ours.p[i].depth, theirs.p[i].depth, 1e-9) << "trial " << trial << " corner " << i;
+      EXPECT_NEAR(ours.p[i].n.dot(n), 1, 1e-12) << "trial " << trial;
+    }
+  }
+  std::printf("box faces compared: %d of 3000 (reference A %d, B %d; more than four corners %d)\n", compared, refA,
+              refB, many);
+  EXPECT_GT(refA, 500);
+  EXPECT_GT(refB, 500);
+  EXPECT_GT(many, 500);
+}
+
 TEST(Narrowphase, TiltedBoxTouchesWithAnEdgeOrACorner) {
   const double a = 0.3;
   const double low = 0.5 * std::cos(a) + 0.5 * std::sin(a);

@@ -272,52 +272,73 @@ TEST(Pyramid, OneMicroIterationIsWhatFails) {
 }
 
 // The out-of-plane mode: under one warm-started sweep per sub-step at κ = 1 (τ 0, contact blocks) a
-// 12-level pyramid's vz, ωx, ωy grow from round-off, about 1.15 a step, under A3 as under A5 (not
-// the refactoring's). Two sweeps, a cold start or κ 0.85 damp it; with μ = 8 it grows a thousand
-// times slower: the friction bounds are part of it. A linear model of the same rows with sticking
-// (unbounded) friction decays: the growth needs the bounds, like the vertical amplification
-// above needs λ >= 0 to turn into walking. It is the method's (warm starting with one sweep), and
-// the pyramid's κ 0.85 is what keeps it down.
+// 12-level pyramid's vz, ωx, ωy grow from round-off, a thousand times in 58 steps (about 1.13 a
+// step), under A3 as under A5 (not the refactoring's). Two sweeps or κ 0.85 damp it; a cold start
+// slows it to tens (about 1.05 a step); with μ = 8 it grows a thousand times slower: the friction
+// bounds are part of it. A linear model of the same rows with sticking (unbounded) friction
+// decays: the growth needs the bounds, like the vertical amplification above needs λ >= 0 to turn
+// into walking. It is the method's (warm starting with one sweep), and the pyramid's κ 0.85 is
+// what keeps it down.
+// Each run starts from the generator's pyramid with every box moved by up to 1e-12 m across and
+// out of the plane, in nine draws, and the test takes the median growth: the exact,
+// mirror-symmetric pyramid has no out-of-plane motion but round-off, and what one run does with
+// that depends on the round-off itself. Cold, the nine grow 4.6 to 102 times, and one takes a kick
+// to 1e-7 m/s; from the exact pyramid, one narrowphase's last bits gave 1.6 and another's that kick.
 namespace {
 
-double outOfPlanePeak(const SolverOverrides& extra, int steps) {
-  const Scene s = parseScene(R"({"solver": {"algorithm": "a5", "warm_start": true, "contact_blocks": true,
-      "kappa": 1, "tau": 0}, "bodies": [{"name": "ground", "static": true, "shape": {"type": "box",
-      "half_extents": [20, 0.5, 10]}, "position": [0, -0.5, 0], "friction": 0.8}], "generators": [{"type": "pyramid",
-      "levels": 12, "half_extents": [0.5, 0.5, 0.5], "gap": 0.01, "mass": 1, "friction": 0.8}]})",
-                             "<pyramid>", ".");
-  World w(s.model, resolve(s.solver.merged(extra)), s.initial);
-  double early = 0, late = 0;
-  for (int k = 1; k <= steps; ++k) {
-    w.step();
-    double m = 0;
-    for (const BodyState& b : w.state().bodies) {
-      const Vec3 wWorld = b.worldAngularVelocity();
-      m = std::max(m, std::abs(b.v.z()) + std::abs(wWorld.x()) + std::abs(wWorld.y()));
+double outOfPlaneGrowth(const SolverOverrides& extra, int steps) {
+  std::vector<double> growths;
+  for (uint64_t draw = 1; draw <= 9; ++draw) {
+    Scene s = parseScene(R"({"solver": {"algorithm": "a5", "warm_start": true, "contact_blocks": true,
+        "kappa": 1, "tau": 0}, "bodies": [{"name": "ground", "static": true, "shape": {"type": "box",
+        "half_extents": [20, 0.5, 10]}, "position": [0, -0.5, 0], "friction": 0.8}], "generators": [{"type": "pyramid",
+        "levels": 12, "half_extents": [0.5, 0.5, 0.5], "gap": 0.01, "mass": 1, "friction": 0.8}]})",
+                         "<pyramid>", ".");
+    uint64_t seed = draw * 7919;
+    const auto jitter = [&] {  // uniform in [-0.5e-12, 0.5e-12] m
+      seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+      return 1e-12 * (static_cast<double>(seed >> 11) / 9007199254740992.0 - 0.5);
+    };
+    for (BodyState& b : s.initial.bodies) {
+      b.x.x() += jitter();
+      b.x.z() += jitter();
     }
-    if (k == 2) early = m;
-    late = m;
+    World w(s.model, resolve(s.solver.merged(extra)), s.initial);
+    double early = 0, late = 0;
+    for (int k = 1; k <= steps; ++k) {
+      w.step();
+      double m = 0;
+      for (const BodyState& b : w.state().bodies) {
+        const Vec3 wWorld = b.worldAngularVelocity();
+        m = std::max(m, std::abs(b.v.z()) + std::abs(wWorld.x()) + std::abs(wWorld.y()));
+      }
+      if (k == 2) early = m;
+      late = m;
+    }
+    growths.push_back(late / std::max(early, 1e-300));
   }
-  return late / std::max(early, 1e-300);
+  std::sort(growths.begin(), growths.end());
+  return growths[growths.size() / 2];
 }
 
 }  // namespace
 
 TEST(Pyramid, OutOfPlaneModeGrowsUnderOneWarmStartedSweep) {
-  const double a5 = outOfPlanePeak({}, 60);
+  const double a5 = outOfPlaneGrowth({}, 60);
   SolverOverrides a3 = algo(Algorithm::A3), two, cold, kappa;
   two.set(&SolverSettings::iterations, 2);
   cold.set(&SolverSettings::warmStart, false);
   kappa.set(&SolverSettings::kappa, 0.85);
-  const double g3 = outOfPlanePeak(a3, 60), g2 = outOfPlanePeak(two, 60), gc = outOfPlanePeak(cold, 60),
-               gk = outOfPlanePeak(kappa, 60);
-  std::printf("12-level pyramid, out-of-plane speed step 60 over step 2: A5 %.3g, A3 %.3g, two sweeps %.3g, cold %.3g, "
-              "kappa 0.85 %.3g\n", a5, g3, g2, gc, gk);
+  const double g3 = outOfPlaneGrowth(a3, 60), g2 = outOfPlaneGrowth(two, 60), gc = outOfPlaneGrowth(cold, 60),
+               gk = outOfPlaneGrowth(kappa, 60);
+  std::printf("12-level pyramid, out-of-plane speed step 60 over step 2 (median of nine draws): A5 %.3g, A3 %.3g, "
+              "two sweeps %.3g, cold %.3g, kappa 0.85 %.3g\n", a5, g3, g2, gc, gk);
   EXPECT_GT(a5, 100);
   EXPECT_GT(g3, 100);
-  EXPECT_LT(g2, 10);
-  EXPECT_LT(gc, 10);
-  EXPECT_LT(gk, 10);
+  EXPECT_LT(g2, 3);
+  EXPECT_LT(gk, 3);
+  EXPECT_LT(gc, 100);
+  EXPECT_LT(gc, a5 / 10);
 }
 
 // The soft step (Box2D v3's, an extension) at its defaults holds the 20-level pyramid: no

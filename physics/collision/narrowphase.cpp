@@ -25,51 +25,80 @@ fcl::Transform3d toFcl(const Pose& p) {
 
 Pose compose(const Pose& a, const Pose& b) { return Pose{a.apply(b.p), a.q * b.q}; }
 
+// Two boxes seen from A: A's rotation RA, B's rotation RB, and B's turn R = RAᵀRB and centre
+// t = RAᵀ(pB − pA) in A's frame. The separating axes and the clipping of two faces take their
+// numbers from these nine products once, not from quaternion rotations of every axis and corner.
+struct BoxPair {
+  Mat3 RA, RB, R;
+  Vec3 t;
+  BoxPair(const Pose& A, const Pose& B)
+      : RA(A.q.toRotationMatrix()), RB(B.q.toRotationMatrix()), R(RA.transpose() * RB), t(RA.transpose() * (B.p - A.p)) {}
+};
+
 // A lower bound on the distance between two boxes: the largest gap along the 15 separating axes
-// (the faces of each box and the cross products of their edges). Positive only if they are apart.
-// Cheap next to FCL's collide-then-distance, which every neighbour pair within the broadphase's
-// reach (the 1 cm gaps of a pyramid row) would otherwise pay each step.
-// axis, if given, receives the best axis (pointing from B to A) and isFace whether it is a face
-// normal rather than the cross product of two edges.
+// (the faces of each box and the cross products of their edges), in A's frame. Positive only if
+// they are apart. Cheap next to FCL's collide-then-distance, which every neighbour pair within the
+// broadphase's reach (the 1 cm gaps of a pyramid row) would otherwise pay each step.
+// axisA, if given, receives the best axis in A's frame (pointing from B to A) and isFace whether it
+// is a face normal rather than the cross product of two edges.
 // With stopAbove, it stops once an axis puts them further apart than that: the bound is the
 // largest gap over the axes, so it would be above it too, and the caller only asks whether it is
 // (a pyramid's neighbours in a row, a centimetre apart, are told by their first axis).
-double boxGapLowerBound(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, Vec3* bestOut = nullptr,
-                        bool* isFace = nullptr, double stopAbove = std::numeric_limits<double>::infinity()) {
-  const Mat3 RA = A.q.toRotationMatrix(), RB = B.q.toRotationMatrix();
-  const Vec3 d = B.p - A.p;
+double boxGapLowerBound(const Vec3& hA, const Vec3& hB, const BoxPair& g, Vec3* axisA = nullptr, bool* isFace = nullptr,
+                        double stopAbove = std::numeric_limits<double>::infinity()) {
+  const Mat3& R = g.R;
+  const Vec3& t = g.t;
   double best = -std::numeric_limits<double>::infinity();
   Vec3 bestAxis = Vec3::Zero();
   bool bestFace = true;
-  auto axis = [&](const Vec3& L, bool face) {
-    const double reach = hA.x() * std::abs(L.dot(RA.col(0))) + hA.y() * std::abs(L.dot(RA.col(1))) +
-                         hA.z() * std::abs(L.dot(RA.col(2))) + hB.x() * std::abs(L.dot(RB.col(0))) +
-                         hB.y() * std::abs(L.dot(RB.col(1))) + hB.z() * std::abs(L.dot(RB.col(2)));
-    const double gap = std::abs(L.dot(d)) - reach;
-    if (gap > best) {
-      best = gap;
-      bestAxis = L.dot(d) > 0 ? -L : L;
-      bestFace = face;
-    }
+  // Axis L (unit, A's frame), B's centre at `along` on it: the gap between the boxes' projections.
+  const auto take = [&](double gap, const Vec3& L, double along, bool face) {
+    best = gap;
+    bestAxis = along > 0 ? Vec3(-L) : L;
+    bestFace = face;
   };
-  for (int i = 0; i < 6 && !(best > stopAbove); ++i) axis(i < 3 ? RA.col(i) : RB.col(i - 3), true);
+  for (int i = 0; i < 3 && !(best > stopAbove); ++i) {  // A's faces
+    const double gap = std::abs(t[i]) - (hA[i] + hB.x() * std::abs(R(i, 0)) + hB.y() * std::abs(R(i, 1)) +
+                                         hB.z() * std::abs(R(i, 2)));
+    if (gap > best) take(gap, Vec3::Unit(i), t[i], true);
+  }
+  for (int j = 0; j < 3 && !(best > stopAbove); ++j) {  // B's faces
+    const double along = R.col(j).dot(t);
+    const double gap = std::abs(along) - (hA.x() * std::abs(R(0, j)) + hA.y() * std::abs(R(1, j)) +
+                                          hA.z() * std::abs(R(2, j)) + hB[j]);
+    if (gap > best) take(gap, R.col(j), along, true);
+  }
   for (int i = 0; i < 3 && !(best > stopAbove); ++i)
     for (int j = 0; j < 3; ++j) {
-      const Vec3 L = RA.col(i).cross(RB.col(j));
+      // A's edge i across B's edge j. Parallel edges: the face axes cover them. An edge axis wins
+      // only by a clear margin, so that a face contact (boxes stacked with a tiny turn) keeps its
+      // face normal.
+      const Vec3 L = Vec3::Unit(i).cross(R.col(j));
       const double n = L.norm();
-      // Parallel edges: the face axes cover them. An edge axis wins only by a clear margin, so
-      // that a face contact (boxes stacked with a tiny turn) keeps its face normal.
-      if (n > 1e-6) {
-        const double before = best;
-        const Vec3 keep = bestAxis;
-        const bool keepFace = bestFace;
-        axis(L / n, false);
-        if (best < before + 1e-9) best = before, bestAxis = keep, bestFace = keepFace;
-      }
+      if (!(n > 1e-6)) continue;
+      const Vec3 u = L / n;
+      const double along = u.dot(t);
+      const double reach = hA.x() * std::abs(u.x()) + hA.y() * std::abs(u.y()) + hA.z() * std::abs(u.z()) +
+                           hB.x() * std::abs(R.col(0).dot(u)) + hB.y() * std::abs(R.col(1).dot(u)) +
+                           hB.z() * std::abs(R.col(2).dot(u));
+      const double gap = std::abs(along) - reach;
+      if (gap >= best + 1e-9) take(gap, u, along, false);
     }
-  if (bestOut) *bestOut = bestAxis;
+  if (axisA) *axisA = bestAxis;
   if (isFace) *isFace = bestFace;
   return best;
+}
+
+// The face of a box that the unit direction d (in the box's frame) meets within kFeatureAngle, as
+// supportingFeature picks it: its axis, or -1 where d meets an edge or a corner.
+int faceAxis(const Vec3& d) {
+  const double across = std::sin(kFeatureAngle);
+  int axis = -1, free = 0;
+  for (int i = 0; i < 3; ++i) {
+    if (std::abs(d[i]) <= across) ++free;
+    else axis = i;
+  }
+  return free == 2 ? axis : -1;
 }
 
 bool isRound(ShapeType t) { return t == ShapeType::Sphere || t == ShapeType::Capsule; }
@@ -429,6 +458,85 @@ void fromNormal(const Shape& sA, const Pose& poseA, const Shape& sB, const Pose&
   reducePatch(out);
 }
 
+// fromNormal's clipping for two boxes whose supporting features along the normal are both faces
+// (a box resting on a box), done in the reference box's frame, where its face is a rectangle and
+// each side plane a test of one coordinate: the overlap's corners within the margin, unreduced.
+// n: the unit normal from B to A. False where either feature is an edge or a corner.
+bool boxFaceCorners(const Vec3& hA, const Vec3& hB, const BoxPair& g, const Pose& poseA, const Pose& poseB,
+                    const Vec3& n, double margin, ContactPatch& out) {
+  // Each box's side towards the other in its own frame, turned there by its quaternion as
+  // supportingFeature turns it: where the normal is one box's face axis, the other two components
+  // are rounding, and their signs pick the corner each face's walk starts at. The points then come
+  // in the general clipping's order, which is the order the solver takes them in: starting every
+  // face at one fixed corner biases the sequential solve (docs/collision.md, "The points' order").
+  const Vec3 dA = poseA.unrotate(-n), dB = poseB.unrotate(n);
+  const int kA = faceAxis(dA), kB = faceAxis(dB);
+  if (kA < 0 || kB < 0) return false;
+  // The reference face is the one facing the normal best; u is the direction from it towards the
+  // incident box, in the reference box's frame; dI the incident box's side towards it, in its own.
+  const bool refIsB = std::abs(dB[kB]) >= std::abs(dA[kA]);
+  const Vec3& hR = refIsB ? hB : hA;
+  const Vec3& hI = refIsB ? hA : hB;
+  const Vec3& u = refIsB ? dB : dA;
+  const Vec3& dI = refIsB ? dA : dB;
+  const int kR = refIsB ? kB : kA, kI = refIsB ? kA : kB;
+  // The incident face's corners in the reference box's frame, and the reference face's sides, in
+  // the order supportingFeature walks each face: from the corner the direction points at, its
+  // first free axis flipped, then the second, then the first back.
+  const auto walk = [](const Vec3& d, int k, const Vec3& h, Vec3* corners) {
+    Vec3 c;
+    for (int i = 0; i < 3; ++i) c[i] = d[i] >= 0 ? h[i] : -h[i];
+    const int a0 = k == 0 ? 1 : 0, a1 = k == 2 ? 1 : 2;
+    corners[0] = c;
+    c[a0] = -c[a0];
+    corners[1] = c;
+    c[a1] = -c[a1];
+    corners[2] = c;
+    c[a0] = -c[a0];
+    corners[3] = c;
+  };
+  Vec3 bufA[8], bufB[8], ref[4];
+  walk(dI, kI, hI, bufA);
+  for (int k = 0; k < 4; ++k) bufA[k] = refIsB ? Vec3(g.R.transpose() * (bufA[k] - g.t)) : Vec3(g.R * bufA[k] + g.t);
+  walk(u, kR, hR, ref);
+  // Sutherland-Hodgman against the reference face's four sides in turn: side i, from corner i to
+  // corner i + 1, keeps the points on the face's side of it, |x_r| <= hR_r on the axis r across it.
+  Vec3* cur = bufA;
+  Vec3* nxt = bufB;
+  int count = 4;
+  for (int side = 0; side < 4 && count > 0; ++side) {
+    const Vec3& e0 = ref[side];
+    const Vec3& e1 = ref[(side + 1) % 4];
+    const int r = e0[(kR + 1) % 3] == e1[(kR + 1) % 3] ? (kR + 1) % 3 : (kR + 2) % 3;
+    const double sg = e0[r] > 0 ? 1.0 : -1.0;
+    int k = 0;
+    for (int i = 0; i < count; ++i) {
+      const Vec3& a = cur[i];
+      const Vec3& b = cur[(i + 1) % count];
+      const double da = sg * a[r] - hR[r], db = sg * b[r] - hR[r];
+      if (da <= 0) nxt[k++] = a;
+      if ((da < 0 && db > 0) || (da > 0 && db < 0)) nxt[k++] = a + (da / (da - db)) * (b - a);
+    }
+    count = k;
+    std::swap(cur, nxt);
+  }
+  // Each point's separation s from the reference face, measured along u (the normal): the
+  // incident point p and its partner q = p - s u on the reference face's plane.
+  const double den = std::abs(u[kR]);
+  if (den < 0.1) return true;  // the reference face nearly along the normal: no meaningful projection
+  const double sideR = u[kR] >= 0 ? 1.0 : -1.0;
+  const Mat3& W = refIsB ? g.RB : g.RA;
+  const Vec3& origin = refIsB ? poseB.p : poseA.p;
+  for (int i = 0; i < count; ++i) {
+    const Vec3& p = cur[i];
+    const double sep = (sideR * p[kR] - hR[kR]) / den;
+    if (sep > margin) continue;
+    const Vec3 onI = W * p + origin, onR = W * Vec3(p - sep * u) + origin;
+    out.add(ContactPoint{refIsB ? onI : onR, refIsB ? onR : onI, n, -sep});
+  }
+  return true;
+}
+
 }  // namespace
 
 bool roundBoxContact(const Shape& round, const Pose& poseR, const Shape& box, const Pose& poseBox, double margin,
@@ -450,8 +558,19 @@ bool roundBoxContact(const Shape& round, const Pose& poseR, const Shape& box, co
   return true;
 }
 
+bool boxFacesClipped(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, const Vec3& n, double margin,
+                     ContactPatch& out) {
+  const BoxPair g(A, B);
+  out.count = 0;
+  return boxFaceCorners(hA, hB, g, A, B, n, margin, out);
+}
+
 double boxBoxGap(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, Vec3& axis) {
-  return boxGapLowerBound(hA, A, hB, B, &axis);
+  const BoxPair g(A, B);
+  Vec3 axisA;
+  const double gap = boxGapLowerBound(hA, hB, g, &axisA);
+  axis = g.RA * axisA;
+  return gap;
 }
 
 void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose& poseA, const Shape& sB,
@@ -470,9 +589,10 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
     return;
   }
   if (sA.type == ShapeType::Box && sB.type == ShapeType::Box) {
-    Vec3 axis;
+    const BoxPair g(poseA, poseB);
+    Vec3 axisA;
     bool face = true;
-    const double gap = boxGapLowerBound(sA.halfExtents, poseA, sB.halfExtents, poseB, &axis, &face, margin);
+    const double gap = boxGapLowerBound(sA.halfExtents, sB.halfExtents, g, &axisA, &face, margin);
     if (gap > margin) return;  // further apart than the margin: no contact and no speculative point
     // The separating axis is the normal and its gap the (negative) depth, whether the boxes are
     // apart within the margin, touching (stacked by a generator) or overlapping. Overlapping, the
@@ -482,9 +602,15 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
     // gap is a lower bound on the distance (exact when a face is closest), so a speculative point
     // may stop the boxes a little early, never late; FCL would need collide and distance here
     // (and for touching boxes a third, nudged collide): its box-box distance was the largest part
-    // of s1 on a collapsing pyramid. useGeneralPath(true) restores FCL's.
+    // of s1 on a collapsing pyramid. useGeneralPath(true) restores FCL's, and the general clipping.
     if (!generalPath_ || gap > kTouching || (gap >= -kTouching && face)) {
-      fromNormal(sA, poseA, sB, poseB, axis, -gap, margin, 0.5 * (poseA.p + poseB.p), out);
+      const Vec3 mid = 0.5 * (poseA.p + poseB.p), n = g.RA * axisA;
+      if (generalPath_ || !boxFaceCorners(sA.halfExtents, sB.halfExtents, g, poseA, poseB, n, margin, out)) {
+        fromNormal(sA, poseA, sB, poseB, n, -gap, margin, mid, out);
+      } else {
+        if (out.count == 0) out.add(ContactPoint{mid + 0.5 * gap * n, mid - 0.5 * gap * n, n, -gap});
+        reducePatch(out);
+      }
       return;
     }
   }

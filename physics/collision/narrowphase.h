@@ -41,8 +41,9 @@ class Narrowphase {
   void collide(const Shape& shapeA, const CollisionShape& cA, const Pose& poseA, const Shape& shapeB,
                const CollisionShape& cB, const Pose& poseB, double margin, ContactPatch& out);
   // Overlapping boxes, and spheres and capsules against boxes, get their normal and depth in
-  // closed form (separating axes, closest points); with this set, from FCL as every other pair:
-  // the general path the closed forms are tested against.
+  // closed form (separating axes, closest points), and two box faces are clipped in the
+  // reference box's frame; with this set, the normal and depth from FCL as for every other pair
+  // and the faces by the general clipping: the general path the closed forms are tested against.
   void useGeneralPath(bool on) { generalPath_ = on; }
 
  private:
@@ -57,6 +58,13 @@ class Narrowphase {
 // a lower bound on the distance; overlapping: minus the exact penetration depth) and its axis,
 // from B towards A.
 double boxBoxGap(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, Vec3& axis);
+
+// Two boxes' faces along the unit normal n (from B to A) clipped against each other in the
+// reference box's frame, exposed for tests: the overlap's corners within `margin` (unreduced), as
+// clipFeatures gives them from the faces' world corners; false where the side of either box
+// along n is an edge or a corner.
+bool boxFacesClipped(const Vec3& hA, const Pose& A, const Vec3& hB, const Pose& B, const Vec3& n, double margin,
+                     ContactPatch& out);
 
 // A sphere or capsule against a box in closed form, exposed for tests: false if they are further
 // apart than `margin`, else the unit normal n from the box towards the round shape, the gap
