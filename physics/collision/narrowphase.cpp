@@ -70,19 +70,24 @@ double boxGapLowerBound(const Vec3& hA, const Vec3& hB, const BoxPair& g, Vec3* 
   }
   for (int i = 0; i < 3 && !(best > stopAbove); ++i)
     for (int j = 0; j < 3; ++j) {
-      // A's edge i across B's edge j. Parallel edges: the face axes cover them. An edge axis wins
-      // only by a clear margin, so that a face contact (boxes stacked with a tiny turn) keeps its
-      // face normal.
-      const Vec3 L = Vec3::Unit(i).cross(R.col(j));
-      const double n = L.norm();
+      // A's edge i across B's edge j: L = e_i × b_j in A's frame, b_j = R's column j. Its
+      // components, its product with t and with each edge of B follow from R's entries (B's edges
+      // are orthonormal: e_i·(b_j × b_m) is R's entry i of the third column, with its sign).
+      // Parallel edges: the face axes cover them. An edge axis wins only by a clear margin, so
+      // that a face contact (boxes stacked with a tiny turn) keeps its face normal.
+      const int i1 = (i + 1) % 3, i2 = (i + 2) % 3, j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+      const double n = std::sqrt(R(i1, j) * R(i1, j) + R(i2, j) * R(i2, j));
       if (!(n > 1e-6)) continue;
-      const Vec3 u = L / n;
-      const double along = u.dot(t);
-      const double reach = hA.x() * std::abs(u.x()) + hA.y() * std::abs(u.y()) + hA.z() * std::abs(u.z()) +
-                           hB.x() * std::abs(R.col(0).dot(u)) + hB.y() * std::abs(R.col(1).dot(u)) +
-                           hB.z() * std::abs(R.col(2).dot(u));
+      const double along = (R(i1, j) * t[i2] - R(i2, j) * t[i1]) / n;
+      const double reach = (hA[i1] * std::abs(R(i2, j)) + hA[i2] * std::abs(R(i1, j)) +
+                            hB[j1] * std::abs(R(i, j2)) + hB[j2] * std::abs(R(i, j1))) / n;
       const double gap = std::abs(along) - reach;
-      if (gap >= best + 1e-9) take(gap, u, along, false);
+      if (gap >= best + 1e-9) {
+        Vec3 u = Vec3::Zero();
+        u[i1] = -R(i2, j) / n;
+        u[i2] = R(i1, j) / n;
+        take(gap, u, along, false);
+      }
     }
   if (axisA) *axisA = bestAxis;
   if (isFace) *isFace = bestFace;
