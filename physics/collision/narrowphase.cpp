@@ -433,6 +433,13 @@ void againstTriangle(const Shape& sA, const Pose& poseA, const Mesh& m, const Po
   }
 }
 
+// A clipped patch's end: where clipping found no point, one at `fallback`, between the bodies,
+// with the pair's depth along n; then at most four points.
+void finishPatch(const Vec3& fallback, const Vec3& n, double depth, ContactPatch& out) {
+  if (out.count == 0) out.add(ContactPoint{fallback - 0.5 * depth * n, fallback + 0.5 * depth * n, n, depth});
+  reducePatch(out);
+}
+
 // Convex A and B touching (depth > 0) or close (depth < 0) along n, from B to A: the points of
 // their supporting features. `fallback` is a point between them for when clipping finds none.
 void fromNormal(const Shape& sA, const Pose& poseA, const Shape& sB, const Pose& poseB, const Vec3& n, double depth,
@@ -459,8 +466,7 @@ void fromNormal(const Shape& sA, const Pose& poseA, const Shape& sB, const Pose&
     refIsB = true;
   }
   clipFeatures(refIsB ? fB : fA, refIsB ? fA : fB, refIsB, n, margin, out);
-  if (out.count == 0) out.add(ContactPoint{fallback - 0.5 * depth * n, fallback + 0.5 * depth * n, n, depth});
-  reducePatch(out);
+  finishPatch(fallback, n, depth, out);
 }
 
 // fromNormal's clipping for two boxes whose supporting features along the normal are both faces
@@ -610,12 +616,10 @@ void Narrowphase::collide(const Shape& sA, const CollisionShape& cA, const Pose&
     // of s1 on a collapsing pyramid. useGeneralPath(true) restores FCL's, and the general clipping.
     if (!generalPath_ || gap > kTouching || (gap >= -kTouching && face)) {
       const Vec3 mid = 0.5 * (poseA.p + poseB.p), n = g.RA * axisA;
-      if (generalPath_ || !boxFaceCorners(sA.halfExtents, sB.halfExtents, g, poseA, poseB, n, margin, out)) {
+      if (generalPath_ || !boxFaceCorners(sA.halfExtents, sB.halfExtents, g, poseA, poseB, n, margin, out))
         fromNormal(sA, poseA, sB, poseB, n, -gap, margin, mid, out);
-      } else {
-        if (out.count == 0) out.add(ContactPoint{mid + 0.5 * gap * n, mid - 0.5 * gap * n, n, -gap});
-        reducePatch(out);
-      }
+      else
+        finishPatch(mid, n, -gap, out);
       return;
     }
   }

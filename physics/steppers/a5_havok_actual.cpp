@@ -176,8 +176,8 @@ class HavokActualStepper final : public Stepper {
     const SolverSettings& st = *c.settings;
     const int n = c.n(), m = st.iterations;
     const double dt = c.h() / n, kappa = st.kappa, tau = st.tau;
-    const double ratio = tau / kappa;
-    const double invKappa = 1 / kappa;  // a product a row instead of up to three divisions
+    const BoxedScales scales = boxedScales(st);  // named, not bound: lambdas below capture them
+    const double ratio = scales.ratio, invKappa = scales.invKappa;
     const size_t nb = c.bodies();
     // The boxed quantities (IV.4.2): β̄ = (τ/κ)β, bounds of λ̄ = bounds of λ over κ. Rows that take
     // their bias back each sub-step are listed with what they need.
@@ -295,6 +295,12 @@ class HavokActualStepper final : public Stepper {
   // The rows whose bias is refreshed each sub-step, listed with what the refresh needs: a target
   // row (velocity level) its base c·target (friction: 0), which is its bias already and moves only
   // with J̌šʲ (zero while τ = 0); a speculative row β¹.
+  // The boxed quantities' factors (IV.4.2): β̄ = (τ/κ)β, λ̄ = λ/κ (1/κ: a product a row instead
+  // of up to three divisions).
+  struct BoxedScales {
+    double ratio, invKappa;
+  };
+  static BoxedScales boxedScales(const SolverSettings& st) { return {st.tau / st.kappa, 1 / st.kappa}; }
   static void listRefreshed(Row& r, double* lane, bool exact, double ratio, PartScratch& s) {
     if (r.velocityLevel && ratio != 0) s.targets.push_back({&r, lane, r.velocityTarget ? (exact ? 1 : ratio) * r.bias : 0});
     if (r.speculative) s.speculative.push_back({&r, lane, r.bias});
@@ -307,7 +313,8 @@ class HavokActualStepper final : public Stepper {
   // before the scaling, as the stored rows' pass lists them (a copy of each, laneRows_, for J̌).
   void prepareLanes(StepContext& c) {
     ConstraintSet& cs = *c.constraints;
-    const double ratio = c.settings->tau / c.settings->kappa, invKappa = 1 / c.settings->kappa;  // as solvePart's
+    const BoxedScales scales = boxedScales(*c.settings);
+    const double ratio = scales.ratio, invKappa = scales.invKappa;
     std::vector<lanes::RigidGroup>& groups = cs.laneGroups();
     c.stats.laneRuns = cs.laneRunCount();
     c.stats.laneGroups = static_cast<int>(groups.size());
